@@ -1,0 +1,19 @@
+"""Physical constants and unit conversions shared by the forward model."""
+
+import math
+
+#: Speed of light in metres per nanosecond.
+SPEED_OF_LIGHT_M_PER_NS = 0.299792458
+
+#: Ratio of a Gaussian's full width at half maximum to its standard deviation, 2·sqrt(2 ln 2).
+FWHM_PER_SIGMA = 2.0 * math.sqrt(2.0 * math.log(2.0))
+
+
+def ns_to_height(duration_ns):
+    """Height difference (m) spanned by a two-way delay of ``duration_ns`` (ns): c·t/2."""
+    return duration_ns * SPEED_OF_LIGHT_M_PER_NS / 2.0
+
+
+def height_to_ns(height_m):
+    """Two-way delay (ns) of a height difference ``height_m`` (m): 2·z/c."""
+    return 2.0 * height_m / SPEED_OF_LIGHT_M_PER_NS

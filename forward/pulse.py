@@ -1,0 +1,135 @@
+"""Transmitted pulses, expressed in height offset d = z_sample − z_scatterer (m).
+
+A later return comes from lower down, so a pulse's leading edge in time lies at positive
+height offsets. Every pulse is normalised to unit area over d and has its peak at d = 0,
+so that a flat ground returns a pulse-shaped peak centred on z = 0 (conventions, "Pulse
+and digitiser"). Variants are chosen through :data:`PULSE_TYPES`.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.special import ndtr, ndtri
+
+from .constants import FWHM_PER_SIGMA, ns_to_height
+
+
+@dataclass(frozen=True)
+class GaussianPulse:
+    """Gaussian pulse of half-power duration ``fwhm_ns`` (ns); σz = τp·c/2/2.35482 (m)."""
+
+    fwhm_ns: float
+
+    def __post_init__(self):
+        if not np.isfinite(self.fwhm_ns) or self.fwhm_ns <= 0:
+            raise ValueError(f"pulse FWHM must be positive and finite, got {self.fwhm_ns} ns")
+
+    @property
+    def sigma_m(self) -> float:
+        """Standard deviation in height (m)."""
+        return ns_to_height(self.fwhm_ns) / FWHM_PER_SIGMA
+
+    def pdf(self, d):
+        s = self.sigma_m
+        return np.exp(-0.5 * (np.asarray(d) / s) ** 2) / (s * np.sqrt(2 * np.pi))
+
+    def cdf(self, d):
+        return ndtr(np.asarray(d) / self.sigma_m)
+
+    def support(self, tolerance):
+        """Offsets (m) outside which each tail holds less than ``tolerance`` of the area."""
+        half = -ndtri(tolerance) * self.sigma_m
+        return -half, half
+
+    def describe(self) -> dict:
+        return {"pulse": "gaussian", "pulse_fwhm_ns": self.fwhm_ns}
+
+
+@dataclass(frozen=True)
+class MeasuredPulse:
+    """A sampled transmit pulse (e.g. GEDI ``txwaveform``), linearly interpolated.
+
+    Parameters
+    ----------
+    samples : array
+        Pulse amplitude in time order, baseline already removed; negative values (noise)
+        are clipped to zero.
+    sample_ns : float (ns)
+        Time between samples.
+    """
+
+    samples: np.ndarray
+    sample_ns: float
+    _offsets: np.ndarray = field(init=False, repr=False)
+    _density: np.ndarray = field(init=False, repr=False)
+    _cumulative: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        samples = np.asarray(self.samples, float)
+        if samples.ndim != 1 or samples.size < 2:
+            raise ValueError("a measured pulse needs a 1-D array of at least 2 samples")
+        if not np.all(np.isfinite(samples)):
+            raise ValueError("the measured pulse has NaN or infinite samples")
+        if not np.isfinite(self.sample_ns) or self.sample_ns <= 0:
+            raise ValueError(f"pulse sample spacing must be positive, got {self.sample_ns} ns")
+        samples = np.clip(samples, 0.0, None)
+        if samples.max() <= 0:
+            raise ValueError("the measured pulse has no positive sample")
+        peak = int(np.argmax(samples))
+        # time order → height offsets: earlier samples sit above the scatterer
+        offsets = -ns_to_height((np.arange(samples.size) - peak) * self.sample_ns)
+        offsets, density = offsets[::-1], samples[::-1]
+        steps = np.diff(offsets)
+        cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (density[1:] + density[:-1]) * steps)])
+        object.__setattr__(self, "_offsets", offsets)
+        object.__setattr__(self, "_density", density / cumulative[-1])
+        object.__setattr__(self, "_cumulative", cumulative / cumulative[-1])
+
+    def pdf(self, d):
+        return np.interp(d, self._offsets, self._density, left=0.0, right=0.0)
+
+    def cdf(self, d):
+        d = np.clip(np.asarray(d, float), self._offsets[0], self._offsets[-1])
+        k = np.clip(np.searchsorted(self._offsets, d, side="right") - 1, 0, self._offsets.size - 2)
+        step = self._offsets[k + 1] - self._offsets[k]
+        t = (d - self._offsets[k]) / step
+        p0, p1 = self._density[k], self._density[k + 1]
+        return self._cumulative[k] + step * (p0 * t + 0.5 * (p1 - p0) * t * t)
+
+    def support(self, tolerance):
+        del tolerance  # the measured pulse has finite support
+        return float(self._offsets[0]), float(self._offsets[-1])
+
+    def describe(self) -> dict:
+        return {"pulse": "measured", "pulse_sample_ns": self.sample_ns}
+
+
+PULSE_TYPES = {"gaussian": GaussianPulse, "measured": MeasuredPulse}
+
+
+def layer_kernel(pulse, bin_height, oversampling, tolerance):
+    """Response of output samples to unit energy spread uniformly over one fine layer.
+
+    Fine layers of thickness ``h = bin_height / oversampling`` tile the height axis with
+    their edges on the digitiser bin edges. For a bin whose centre lies ``q`` layers above
+    the layer (``q = j·m − i`` in global indices), the sample is
+    ``Δz/h · [C(d + h/2) − C(d − h/2)]`` with ``d = (q + (m − 1)/2)·h`` and ``C`` the pulse
+    CDF: the exact convolution of a uniform layer with the pulse, point-sampled at the bin
+    centre and multiplied by Δz.
+
+    Returns
+    -------
+    q_min : int
+        Offset of the first kernel tap.
+    taps : array
+        Kernel values for offsets ``q_min, q_min + 1, …``.
+    """
+    m = int(oversampling)
+    h = bin_height / m
+    low, high = pulse.support(tolerance)
+    shift = (m - 1) / 2
+    q_min = int(np.floor((low - h / 2) / h - shift))
+    q_max = int(np.ceil((high + h / 2) / h - shift))
+    d = (np.arange(q_min, q_max + 1) + shift) * h
+    taps = bin_height / h * (pulse.cdf(d + h / 2) - pulse.cdf(d - h / 2))
+    return q_min, taps

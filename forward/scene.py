@@ -1,0 +1,69 @@
+"""Ground plane and the uniform understory layer."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Ground:
+    """A Lambertian ground plane through z = 0 at the beam centre.
+
+    Parameters
+    ----------
+    reflectance : float
+        Effective backscatter reflectance ρg.
+    slope_deg : float (degrees)
+        Slope of the plane; 0 for flat ground.
+    aspect_deg : float (degrees)
+        Direction of steepest ascent, counter-clockwise from +x.
+    """
+
+    reflectance: float = 0.3
+    slope_deg: float = 0.0
+    aspect_deg: float = 0.0
+
+    def __post_init__(self):
+        if not np.isfinite(self.reflectance) or self.reflectance < 0:
+            raise ValueError(f"ground reflectance must be finite and ≥ 0, got {self.reflectance}")
+        if not 0.0 <= self.slope_deg < 80.0:
+            raise ValueError(f"ground slope must lie in [0, 80) degrees, got {self.slope_deg}")
+
+    @property
+    def is_flat(self) -> bool:
+        return self.slope_deg == 0.0
+
+    def elevation(self, dx, dy):
+        """Ground height (m) at offsets (dx, dy) from the beam centre."""
+        if self.is_flat:
+            return np.zeros(np.broadcast(dx, dy).shape)
+        gradient = np.tan(np.radians(self.slope_deg))
+        aspect = np.radians(self.aspect_deg)
+        return gradient * (np.cos(aspect) * np.asarray(dx) + np.sin(aspect) * np.asarray(dy))
+
+
+@dataclass(frozen=True)
+class UniformUnderstory:
+    """A horizontally uniform foliage layer from the ground to ``height``.
+
+    Parameters
+    ----------
+    height : float (m)
+        Top of the layer.
+    lai : float (m²/m²)
+        One-sided leaf area index of the layer.
+    """
+
+    height: float
+    lai: float
+
+    def __post_init__(self):
+        if not (np.isfinite(self.height) and self.height > 0):
+            raise ValueError(f"understory height must be positive, got {self.height} m")
+        if not (np.isfinite(self.lai) and self.lai >= 0):
+            raise ValueError(f"understory LAI must be finite and ≥ 0, got {self.lai}")
+
+    @property
+    def favd(self) -> float:
+        """Foliage area volume density of the layer (m²/m³)."""
+        return self.lai / self.height

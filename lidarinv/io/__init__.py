@@ -1,0 +1,1 @@
+"""File formats: lidarinv HDF5 layouts and mission readers."""

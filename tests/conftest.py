@@ -1,0 +1,27 @@
+import numpy as np
+import pytest
+
+import forward as fw
+
+
+def random_stand(rng, n=60, half_width=25.0, shapes=fw.SHAPE_NAMES, favd=0.8):
+    height = rng.uniform(8.0, 30.0, n)
+    return fw.Stand.from_arrays(
+        x=rng.uniform(-half_width, half_width, n),
+        y=rng.uniform(-half_width, half_width, n),
+        height=height,
+        crown_length=rng.uniform(0.3, 0.7, n) * height,
+        crown_radius=rng.uniform(0.05, 0.13, n) * height,
+        favd=favd,
+        shape=rng.choice(list(shapes), n),
+    )
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)
+
+
+@pytest.fixture
+def gedi():
+    return fw.instrument_preset("gedi")
