@@ -1,0 +1,167 @@
+"""The expected-waveform model: Monte Carlo agreement with the explicit engine, its own
+convergence, and the properties the sampler relies on."""
+
+import numpy as np
+import pytest
+
+import forward as fw
+from forward.expected import CONVERGED, ExpectedWaveformModel, ModelSettings
+from forward.realise import realise, scene_extras
+from forward.stand_params import StandParams
+
+INSTRUMENT = fw.instrument_preset("gedi", footprint_sigma_m=2.5)
+
+
+def _params(**changes):
+    base = dict(density=600.0, height_mean=15.0, height_sd=3.0, crown_length_ratio=0.5,
+                crown_radius_slope=0.12, favd=0.8)
+    base.update(changes)
+    return StandParams(**base)
+
+
+MC_CASES = {
+    "cone": _params(shape_mix="cone"),
+    "ellipsoid": _params(shape_mix="ellipsoid"),
+    "hemi-ellipsoid": _params(shape_mix="hemi-ellipsoid", height_family="lognormal"),
+    "cylinder": _params(shape_mix="cylinder", density=300.0, favd=0.5),
+    "mixed two-tier": _params(
+        shape_mix={"cone": 0.3, "ellipsoid": 0.7}, height_family="truncnorm",
+        cohort2_fraction=0.6, cohort2_height_mean=6.0, cohort2_height_sd=1.5,
+        cohort2_shape_mix="cone", density=900.0,
+    ),
+    "understory": _params(shape_mix="ellipsoid", density=400.0, understory_height=2.0,
+                          understory_lai=1.0),
+}
+
+
+@pytest.mark.parametrize("case", sorted(MC_CASES))
+def test_mean_of_explicit_realisations_matches_expectation(case):
+    """E[engine(realise(θ))] = model(θ): bins and blocks within their Monte Carlo error."""
+    params = MC_CASES[case]
+    sim = fw.WaveformSimulator(INSTRUMENT, fw.AccuracySettings(radial_nodes=6, angular_nodes=12))
+    heights = sim.default_heights(32.0, 0.0)
+    model = ExpectedWaveformModel(INSTRUMENT, heights, params, settings=CONVERGED)
+    expected = model(params)[0]
+    ground, understory, rho_v = scene_extras(params)
+    rng = np.random.default_rng(20001)
+    side = 2 * (sim.footprint_radius + 6.0)
+    n = 300
+    runs = np.array([
+        sim.simulate(realise(params, side, rng, origin=(-side / 2, -side / 2)), (0.0, 0.0),
+                     heights=heights, ground=ground, canopy_reflectance=rho_v,
+                     understory=understory).samples
+        for _ in range(n)
+    ])
+    mean, se = runs.mean(0), runs.std(0, ddof=1) / np.sqrt(n)
+    # bins with a usable standard error (elsewhere both are ~0)
+    usable = se > 0.05 * se.max()
+    z = (mean - expected)[usable] / se[usable]
+    assert np.max(np.abs(z)) < 4.5, (case, np.round(z, 2))
+    # contiguous blocks: the sums of several bins have errors of their own
+    starts = np.linspace(0, heights.size, 9).astype(int)[:-1]
+    blocks = np.add.reduceat(runs, starts, axis=1)
+    block_se = blocks.std(0, ddof=1) / np.sqrt(n)
+    block_z = (blocks.mean(0) - np.add.reduceat(expected, starts)) / np.maximum(block_se, 1e-12)
+    # blocks fed only by rare tall trees have skewed, underestimated errors: leave them out
+    usable = block_se > 0.1 * block_se.max()
+    assert np.max(np.abs(block_z[usable])) < 4.0, (case, np.round(block_z, 2))
+    # the total energy ρv(1 − P̄(0)) + ρg·P̄(0)
+    total_z = (runs.sum(1).mean() - expected.sum()) / (runs.sum(1).std(ddof=1) / np.sqrt(n))
+    assert abs(total_z) < 4.0
+
+
+def _batch(model, rng, n=16):
+    theta = np.repeat(model.vector(model.template)[None, :], n, axis=0)
+    theta *= 1.0 + 0.15 * rng.uniform(-1, 1, theta.shape)
+    theta[:, model.parameter_names.index("ground_elevation")] = rng.uniform(-1, 1, n)
+    return theta
+
+
+def test_quadrature_converges_to_reference():
+    params = MC_CASES["mixed two-tier"]
+    sim = fw.WaveformSimulator(INSTRUMENT)
+    heights = sim.default_heights(30.0, -3.0)
+    rng = np.random.default_rng(5)
+    reference = ExpectedWaveformModel(INSTRUMENT, heights, params, settings=CONVERGED)
+    theta = _batch(reference, rng)
+    ref = reference(theta)
+
+    def error(**settings):
+        model = ExpectedWaveformModel(INSTRUMENT, heights, params,
+                                      settings=ModelSettings(**settings))
+        return np.max(np.abs(model(theta) - ref).sum(1) / ref.sum(1))
+
+    radial = [error(radial_nodes=j, height_nodes=256, depth_nodes=None) for j in (2, 4, 8, 16)]
+    assert all(b < a for a, b in zip(radial, radial[1:])), radial
+    assert radial[-1] < 1e-4
+    grid = [error(radial_nodes=32, height_nodes=h, depth_nodes=None) for h in (8, 16, 32, 64)]
+    assert all(b < a for a, b in zip(grid, grid[1:])), grid
+    assert grid[-1] < 1e-4
+    depth = [error(radial_nodes=32, height_nodes=256, depth_nodes=d) for d in (8, 16, 32, 64)]
+    assert depth[-1] < depth[0] and depth[-1] < 5e-4, depth
+    assert error() < 2e-3  # the defaults
+
+
+def test_batch_shape_and_invalid_rows_are_masked_not_raised():
+    params = MC_CASES["cone"]
+    heights = fw.WaveformSimulator(INSTRUMENT).default_heights(30.0)
+    model = ExpectedWaveformModel(INSTRUMENT, heights, params)
+    theta = _batch(model, np.random.default_rng(1), n=6)
+    theta[1, 0] = -5.0  # negative density
+    theta[2, 1] = np.nan  # height mean
+    theta[3, model.parameter_names.index("crown_length_ratio")] = 1.5
+    out = model.evaluate(theta)
+    assert out.samples.shape == (6, heights.size)
+    assert np.all(np.isfinite(out.samples))
+    assert out.valid.tolist() == [True, False, False, False, True, True]
+    assert np.all(out.samples[~out.valid] == 0.0)
+    assert np.array_equal(model.valid(theta), out.valid)
+    # a batch of parameter objects gives the same rows as their vectors
+    objects = model([params, params.with_values(density=300.0)])
+    vectors = model(np.array([model.vector(params),
+                              model.vector(params.with_values(density=300.0))]))
+    np.testing.assert_allclose(objects, vectors)
+
+
+def test_energy_budget_and_limits():
+    heights = fw.WaveformSimulator(INSTRUMENT).default_heights(35.0, -2.0)
+    params = MC_CASES["ellipsoid"]
+    model = ExpectedWaveformModel(INSTRUMENT, heights, params)
+    out = model.evaluate(params)
+    p0 = out.gap_ground[0]
+    total = params.canopy_reflectance * (1 - p0) + params.ground_reflectance * p0
+    assert out.samples.sum() == pytest.approx(total, rel=1e-6)
+    # no trees: the ground pulse alone, of area ρg
+    bare = model.evaluate(params.with_values(density=0.0))
+    assert np.all(bare.canopy == 0) and bare.samples.sum() == pytest.approx(0.3, rel=1e-6)
+    assert heights[np.argmax(bare.samples)] == pytest.approx(0.0, abs=heights[1] - heights[0])
+    # a dense opaque stand hides the ground
+    dense = model.evaluate(params.with_values(density=20000.0, favd=5.0))
+    assert dense.gap_ground[0] < 1e-6
+
+
+def test_ground_elevation_is_continuous_and_exact_on_bin_steps():
+    heights = fw.WaveformSimulator(INSTRUMENT).default_heights(30.0, -5.0)
+    params = MC_CASES["hemi-ellipsoid"]
+    model = ExpectedWaveformModel(INSTRUMENT, heights, params)
+    dz = INSTRUMENT.bin_height
+    theta = np.repeat(model.vector(params)[None, :], 3, axis=0)
+    g = model.parameter_names.index("ground_elevation")
+    theta[:, g] = [0.0, 3 * dz, 0.37 * dz]
+    w = model(theta)
+    np.testing.assert_allclose(w[1, 3:], w[0, :-3], atol=1e-12)  # shift by three bins
+    centroid = (w * heights).sum(1) / w.sum(1)
+    assert centroid[2] - centroid[0] == pytest.approx(0.37 * dz, rel=1e-3)
+
+
+def test_measured_pulse_replaces_gaussian():
+    gauss = fw.instrument_preset("gedi", footprint_sigma_m=2.5)
+    t = np.arange(-160, 161) * 0.25  # ns, ±6 sd
+    sigma_ns = 15.0 / 2.35482
+    samples = np.exp(-0.5 * (t / sigma_ns) ** 2)
+    measured = gauss.with_overrides(pulse=fw.MeasuredPulse(samples, 0.25))
+    heights = fw.WaveformSimulator(gauss).default_heights(30.0)
+    params = MC_CASES["cone"]
+    a = ExpectedWaveformModel(gauss, heights, params)(params)
+    b = ExpectedWaveformModel(measured, heights, params)(params)
+    assert np.abs(a - b).sum() / a.sum() < 2e-3

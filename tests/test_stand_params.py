@@ -1,0 +1,68 @@
+"""The stand parameter object and its height-distribution registry."""
+
+import numpy as np
+import pytest
+
+from forward.stand_params import HEIGHT_DISTRIBUTIONS, StandParams, height_distribution
+
+
+@pytest.mark.parametrize("family", ["weibull", "lognormal"])
+@pytest.mark.parametrize("mean, sd", [(15.0, 3.0), (6.0, 0.5), (22.0, 9.0)])
+def test_families_reproduce_their_mean_and_sd(family, mean, sd):
+    dist = height_distribution(family, mean, sd)
+    assert dist.mean() == pytest.approx(mean, rel=1e-6)
+    assert dist.std() == pytest.approx(sd, rel=1e-3)
+    assert dist.ppf(0.0) >= 0.0  # heights are never negative
+
+
+def test_truncated_normal_is_bounded():
+    dist = height_distribution("truncnorm", 13.5, 0.75, truncation=2.0)
+    assert dist.ppf(0.0) == pytest.approx(12.0)
+    assert dist.ppf(1.0) == pytest.approx(15.0)
+    # a parent normal that would reach below the ground is cut at zero
+    low = height_distribution("truncnorm", 2.0, 2.0, truncation=3.0)
+    assert low.ppf(0.0) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_registry_and_fast_paths_agree():
+    for family in HEIGHT_DISTRIBUTIONS.values():
+        x = np.linspace(1, 30, 7)
+        np.testing.assert_allclose(family.pdf(x, 14.0, 3.0), family.frozen(14.0, 3.0).pdf(x))
+
+
+def test_shape_mix_accepts_names_and_mappings():
+    p = StandParams(density=500, height_mean=15, height_sd=3,
+                    shape_mix={"cone": 0.25, "ellipsoid": 0.75})
+    assert p.shape_mix == (0.25, 0.75, 0.0, 0.0)
+    assert p.cohort2_shape_mix == p.shape_mix
+    q = StandParams(density=500, height_mean=15, height_sd=3, shape_mix="cylinder",
+                    favd=0.5, favd_ratio={"cylinder": 2.0})
+    assert q.shape_mix == (0.0, 0.0, 0.0, 1.0)
+    np.testing.assert_allclose(q.favd_by_shape(), [0.5, 0.5, 0.5, 1.0])
+    assert q.crown_radius(10.0) == pytest.approx(1.0)
+    assert q.crown_length(10.0) == pytest.approx(5.0)
+    with pytest.raises(Exception):
+        q.density = 3.0  # frozen
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"density": -1.0}, "density"),
+        ({"height_sd": 0.0}, "height_sd"),
+        ({"height_family": "gamma"}, "height_family"),
+        ({"shape_mix": {"cone": 0.5}}, "sum to 1"),
+        ({"shape_mix": {"sphere": 1.0}}, "unknown crown shape"),
+        ({"crown_length_ratio": 1.2}, "crown_length_ratio"),
+        ({"favd": 0.0}, "favd"),
+        ({"cohort2_fraction": 1.5}, "cohort2_fraction"),
+        ({"cohort2_fraction": 0.5, "cohort2_height_sd": -1.0}, "cohort2_height_sd"),
+        ({"height_sd": 100.0}, "outside what the weibull family supports"),
+        ({"canopy_reflectance": np.nan}, "canopy_reflectance"),
+    ],
+)
+def test_invalid_parameters_raise_clear_errors(changes, message):
+    base = dict(density=500.0, height_mean=15.0, height_sd=3.0)
+    base.update(changes)
+    with pytest.raises(ValueError, match=message):
+        StandParams(**base)
