@@ -43,8 +43,10 @@ def mean_height(params) -> float:
 
 def canopy_cover(params) -> float:
     """Fraction of ground under at least one crown: 1 − exp(−λ·E[π Rc²])."""
-    area = _expect(params, lambda h: np.broadcast_to(np.pi * params.crown_radius(h) ** 2,
-                                                     (len(SHAPE_NAMES), h.size)))
+    area = _expect(
+        params,
+        lambda h: np.broadcast_to(np.pi * params.crown_radius(h) ** 2, (len(SHAPE_NAMES), h.size)),
+    )
     return float(-np.expm1(-params.density_per_m2 * area))
 
 

@@ -75,6 +75,15 @@ def jack_pine(shape="hemi-ellipsoid", seed=1993) -> ExampleScene:
 #: Example name → factory returning an :class:`ExampleScene`.
 EXAMPLES = {
     "jack-pine": jack_pine,
+    # successional stands of forward.paper_stands (imported lazily: it imports this module)
+    **{
+        f"successional-{age}": (
+            lambda age=age: __import__(
+                "forward.paper_stands", fromlist=["successional_scene"]
+            ).successional_scene(age)
+        )
+        for age in (5, 20, 60, 200)
+    },
 }
 
 

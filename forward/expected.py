@@ -19,8 +19,9 @@ the expected waveform follows from E[P] at the fine-layer edges: a canopy layer 
 Inner integral. With ρ = r/Rc and a crown interval [s_lo(ρ), s_hi(ρ)] (fractions of Lc
 above the base (1 − c)h), a column at ρ crosses the crown between a(ρ)·h and b(ρ)·h with
 a = 1 − c + c·s_lo and b = 1 − c + c·s_hi: both ends are proportional to h. With
-Gauss–Legendre nodes ρ_j in ρ² (weights w_j, Σ w_j = 1), area dA = π Rc² d(ρ²), and the
-cohort/shape height density f_s(h),
+Gauss–Legendre nodes ρ_j across the disc (weights w_j, Σ w_j = 1, area dA = π Rc² d(ρ²);
+in ρ for cones and cylinders, in sqrt(1 − ρ²) for spheroids, see
+:func:`forward.expected_tables.radial_rule`) and the cohort/shape height density f_s(h),
 
     λ E[∫(1 − e^{−κuℓ}) dA] = Σ_s Σ_j w_j ∫ g_s(h) · φ_j(z, h) dh,  g_s = λ π Rc(h)² f_s(h),
 
@@ -33,19 +34,24 @@ Q0(t) = ∫_t^∞ g, Q1_j(t) = ∫_t^∞ g e^{−κu(b_j−a_j)h}, Q2_j(t) = ∫
 
     ∫ g φ_j dh = Q0(z/b_j) − Q1_j(z/a_j) − e^{κuz} [Q2_j(z/b_j) − Q2_j(z/a_j)].
 
-A call builds these tables per parameter vector (trapezoid rule on ``height_nodes`` grid
-points spanning the height distribution), reads them by linear interpolation at z/a_j and
-z/b_j for every fine-layer edge, and convolves the layer returns with the same layer
-kernel as the explicit engine (:func:`forward.pulse.layer_kernel`) as one matrix product.
-The ground elevation g moves the edges (z = e − g): no resampling.
+A call builds these tables per parameter vector and cohort (``height_nodes`` points over
+the cohort's height distribution, fourth-order rules of
+:class:`forward.expected_tables.TailTable`), reads them at z/a_j and z/b_j on
+``depth_nodes`` heights from 0 to the tallest tree, interpolates E[P] to every fine-layer
+edge (Catmull–Rom; or reads the tables at every edge when ``depth_nodes`` is None), and
+convolves the layer returns ρv·ΔE[P] with the same layer kernel as the explicit engine
+(:func:`forward.pulse.layer_kernel`) as one matrix product. The ground elevation g moves
+the edges (z = e − g): no resampling of samples. The uniform
+understory multiplies E[P] by its own transmission; the ground pulse is ρg·E[P(0)]·Δz·
+pulse(z_j − g), for a Gaussian or a measured pulse alike. Slopes are not modelled here.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.polynomial.legendre import leggauss
 
 from .crowns import CROWN_SHAPES, SHAPE_NAMES
+from .expected_tables import TailTable, catmull_rom, exp_grid, grid_position, radial_rule
 from .pulse import layer_kernel
 from .stand_params import HEIGHT_DISTRIBUTIONS, StandParams
 
@@ -111,7 +117,7 @@ class ModelSettings:
     height_nodes: int = 32
     tail: float = 1e-6
     oversampling: int | None = None
-    depth_nodes: int | None = 24
+    depth_nodes: int | None = 32
     max_elements: int = 4_000_000
 
 
@@ -158,8 +164,14 @@ class ExpectedWaveformModel:
     settings : ModelSettings
     """
 
-    def __init__(self, instrument, heights, template: StandParams, free=DEFAULT_FREE,
-                 settings: ModelSettings | None = None):
+    def __init__(
+        self,
+        instrument,
+        heights,
+        template: StandParams,
+        free=DEFAULT_FREE,
+        settings: ModelSettings | None = None,
+    ):
         self.settings = ModelSettings() if settings is None else settings
         unknown = [name for name in free if name not in _I]
         if unknown:
@@ -216,8 +228,13 @@ class ExpectedWaveformModel:
 
     def vector(self, params: StandParams, ground_elevation=0.0) -> np.ndarray:
         """The free-parameter vector of ``params`` (checks that its fixed settings match)."""
-        for name in ("height_family", "shape_mix", "cohort2_shape_mix", "favd_ratio",
-                     "height_truncation"):
+        for name in (
+            "height_family",
+            "shape_mix",
+            "cohort2_shape_mix",
+            "favd_ratio",
+            "height_truncation",
+        ):
             if getattr(params, name) != getattr(self.template, name):
                 raise ValueError(f"{name} differs from the model's template; build a new model")
         return self.full_vector(params, ground_elevation)[self._free_index]
@@ -252,8 +269,12 @@ class ExpectedWaveformModel:
         ok &= self._family.valid(col("height_mean"), col("height_sd"), t)
         two = col("cohort2_fraction") > 0
         c2_ok = (col("cohort2_height_mean") > 0) & (col("cohort2_height_sd") > 0)
-        ok &= ~two | (c2_ok & self._family.valid(
-            np.abs(col("cohort2_height_mean")) + 1e-9, np.abs(col("cohort2_height_sd")), t))
+        ok &= ~two | (
+            c2_ok
+            & self._family.valid(
+                np.abs(col("cohort2_height_mean")) + 1e-9, np.abs(col("cohort2_height_sd")), t
+            )
+        )
         return ok
 
     # evaluation --------------------------------------------------------------------------
@@ -277,8 +298,13 @@ class ExpectedWaveformModel:
             canopy[rows], gap0[rows] = self._canopy(full[rows])
         g = full[:, _I["ground_elevation"]]
         dz = self.instrument.bin_height
-        pulse = self.instrument.pulse.pdf(self.heights[None, :] - g[:, None])
-        ground = (full[:, _I["ground_reflectance"]] * gap0)[:, None] * dz * pulse
+        low, high = self.instrument.pulse.support(1e-12)
+        first = max(int(np.searchsorted(self.heights, g.min() + low)), 0)
+        last = int(np.searchsorted(self.heights, g.max() + high, side="right"))
+        ground = np.zeros_like(canopy)
+        if last > first:
+            pulse = self.instrument.pulse.pdf(self.heights[None, first:last] - g[:, None])
+            ground[:, first:last] = (full[:, _I["ground_reflectance"]] * gap0)[:, None] * dz * pulse
         canopy *= full[:, _I["canopy_reflectance"]][:, None]
         canopy[~valid] = 0.0
         ground[~valid] = 0.0
@@ -293,29 +319,34 @@ class ExpectedWaveformModel:
     def _canopy(self, v):
         g = v[:, _I["ground_elevation"]]
         # only edges that can hold canopy for some row need the tables
-        top = self._height_range(v)[1]
+        cohorts = self._cohorts(v)
+        top = self._top(cohorts)
         lo_edge = np.searchsorted(self._edges, g.min(), side="right") - 1
         hi_edge = np.searchsorted(self._edges, (g + top).max(), side="right") + 1
         lo_edge, hi_edge = max(lo_edge, 0), min(hi_edge, self._edges.size - 1)
         canopy = np.zeros((v.shape[0], self.heights.size))
         z = self._edges[None, lo_edge : hi_edge + 1] - g[:, None]
         z = np.concatenate([np.zeros((v.shape[0], 1)), z], axis=1)
-        p = self._gap(v, z)
+        p = self._gap(v, z, cohorts)
         if hi_edge > lo_edge:
             energy = np.diff(p[:, 1:], axis=1)
             canopy = energy @ self._kernel[lo_edge:hi_edge]
         return canopy, p[:, 0]
 
-    def _height_range(self, v):
+    def _cohorts(self, v):
+        """Per cohort: (weight, mean, sd, lo, hi), with the grid span [lo, hi] (m)."""
         t, tail = self.template.height_truncation, self.settings.tail
-        lo = np.full(v.shape[0], np.inf)
-        hi = np.zeros(v.shape[0])
+        out = []
         for weight, mean, sd in self._cohort_columns(v):
-            active = weight > 0
-            lo = np.where(active, np.minimum(lo, self._family.ppf(tail, mean, sd, t)), lo)
-            hi = np.where(active, np.maximum(hi, self._family.isf(tail, mean, sd, t)), hi)
-        lo = np.where(np.isfinite(lo), lo, 0.0)
-        return np.maximum(lo, 0.0), np.maximum(hi, lo + 1e-6)
+            lo = self._family.ppf(tail, mean, sd, t)
+            hi = np.maximum(self._family.isf(tail, mean, sd, t), lo + 1e-6)
+            out.append((weight, mean, sd, lo, hi))
+        return out
+
+    @staticmethod
+    def _top(cohorts):
+        """Tallest tree of any active cohort (m), per row."""
+        return np.max([np.where(w > 0, hi, 0.0) for w, _, _, _, hi in cohorts], axis=0)
 
     def _cohort_columns(self, v):
         f2 = v[:, _I["cohort2_fraction"]]
@@ -328,28 +359,32 @@ class ExpectedWaveformModel:
                 np.where(safe, v[:, _I["cohort2_height_sd"]], 0.1),
             )
 
-    def _gap(self, v, z):
+    def _gap(self, v, z, cohorts=None):
         """E[P] at heights z (n, e) above the ground, for full vectors v (n, …)."""
         z = np.maximum(z, 0.0)
-        lo, hi = self._height_range(v)
+        cohorts = self._cohorts(v) if cohorts is None else cohorts
         nodes = self.settings.depth_nodes
         if nodes is None:
-            depth = self._tree_depth(v, z, lo, hi)
-        else:  # tree optical depth on a uniform grid from 0 to the tallest tree, then cubic
-            grid = hi[:, None] * np.linspace(0.0, 1.0, nodes)
-            depth = _cubic(self._tree_depth(v, grid, lo, hi), z, hi / (nodes - 1))
-        under = v[:, _I["understory_lai"], None] * self._kappa
-        hu = v[:, _I["understory_height"], None]
-        depth += under * np.clip(hu - z, 0.0, None) / hu
-        return np.exp(-depth)
+            gap = np.exp(-self._tree_depth(v, z, cohorts))
+        else:  # E[P] of the trees on a uniform grid from 0 to the tallest tree, then cubic
+            top = self._top(cohorts)
+            grid = top[:, None] * np.linspace(0.0, 1.0, nodes)
+            depth = self._tree_depth(v, grid, cohorts, uniform=True)
+            gap = catmull_rom(np.exp(-depth), z, top / (nodes - 1), beyond=1.0)
+        lai = v[:, _I["understory_lai"], None]
+        if np.any(lai > 0):  # the uniform layer multiplies every column's gap
+            hu = v[:, _I["understory_height"], None]
+            gap = gap * np.exp(-self._kappa * lai * np.clip(hu - z, 0.0, None) / hu)
+        return gap
 
-    def _tree_depth(self, v, z, lo, hi):
+    def _tree_depth(self, v, z, cohorts, uniform=False):
         """λ·E[∫(1 − e^{−κuℓ}) dA] at heights z ≥ 0 (n, e), for full vectors v (n, …).
+
+        ``uniform``: z is a uniform grid per row starting at 0 (exponentials by products).
 
         Each cohort gets its own height grid, spanning its own distribution, so that a
         truncated distribution has its jumps only at the grid ends.
         """
-        del lo, hi
         n, s = v.shape[0], self.settings
         nh = s.height_nodes
         t = self.template.height_truncation
@@ -357,15 +392,14 @@ class ExpectedWaveformModel:
         favd = self.template.favd_by_shape() / self.template.favd
         depth = np.zeros_like(z)
         rows = (np.arange(n) * nh)[:, None, None]
-        for cohort, (weight, mean, sd) in enumerate(self._cohort_columns(v)):
-            lo = self._family.ppf(s.tail, mean, sd, t)
-            hi = np.maximum(self._family.isf(s.tail, mean, sd, t), lo + 1e-6)
+        for cohort, (weight, mean, sd, lo, hi) in enumerate(cohorts):
             step = (hi - lo) / (nh - 1)
             h = lo[:, None] + step[:, None] * np.arange(nh)
             pdf = self._family.pdf(h, mean[:, None], sd[:, None], t)
-            norm = _Table(pdf, step).q[:, 0]
-            radius = v[:, _I["crown_radius_intercept"], None] + v[:, _I["crown_radius_slope"],
-                                                                   None] * h
+            norm = TailTable(pdf, step).q[:, 0]
+            radius = (
+                v[:, _I["crown_radius_intercept"], None] + v[:, _I["crown_radius_slope"], None] * h
+            )
             scale = np.pi * v[:, _I["density"]] / 1e4 * weight / np.where(norm > 0, norm, 1.0)
             g_cohort = scale[:, None] * radius**2 * pdf
             inv = (1.0 / step)[:, None, None]
@@ -377,97 +411,19 @@ class ExpectedWaveformModel:
                 ku = (self._kappa * v[:, _I["favd"]] * favd[shape])[:, None]
                 a = np.maximum(1 - c + c * self._s_lo[k], 1e-12)  # (n, J)
                 b = 1 - c + c * self._s_hi[k]
-                f1 = g_h[:, None, :] * np.exp(-(ku * (b - a))[:, :, None] * h[:, None, :])
-                f2 = g_h[:, None, :] * np.exp(-(ku * b)[:, :, None] * h[:, None, :])
-                q0, q1, q2 = (_Table(f, step) for f in (g_h, f1, f2))
-                pos_b = _position(z[:, None, :] / b[:, :, None], lo[:, None, None], inv, nh)
-                pos_a = _position(z[:, None, :] / a[:, :, None], lo[:, None, None], inv, nh)
+                f1 = g_h[:, None, :] * exp_grid(-ku * (b - a), lo, step, nh)
+                f2 = g_h[:, None, :] * exp_grid(-ku * b, lo, step, nh)
+                q0, q1, q2 = (TailTable(f, step) for f in (g_h, f1, f2))
+                pos_b = grid_position(z[:, None, :] / b[:, :, None], lo[:, None, None], inv, nh)
+                pos_a = grid_position(z[:, None, :] / a[:, :, None], lo[:, None, None], inv, nh)
                 j_rows = (np.arange(n * b.shape[1]) * nh).reshape(n, -1)[:, :, None]
                 term = q0.at(rows, *pos_b) - q1.at(j_rows, *pos_a)
-                term -= np.exp(ku[:, :, None] * z[:, None, :]) * (
-                    q2.at(j_rows, *pos_b) - q2.at(j_rows, *pos_a)
-                )
+                if uniform:
+                    grow = exp_grid(
+                        np.broadcast_to(ku, b.shape), z[:, 0], z[:, 1] - z[:, 0], z.shape[1]
+                    )
+                else:
+                    grow = np.exp(ku[:, :, None] * z[:, None, :])
+                term -= grow * (q2.at(j_rows, *pos_b) - q2.at(j_rows, *pos_a))
                 depth += np.einsum("j,nje->ne", self._weights[k], term)
         return depth
-
-
-#: Radial variable of the disc quadrature per shape: ``rho`` (Gauss–Legendre in r/Rc,
-#: smooth for chords linear in ρ) or ``chord`` (in u = sqrt(1 − ρ²), which makes the
-#: spheroid chords linear and removes their square-root edge singularity).
-RADIAL_VARIABLE = {"cone": "rho", "cylinder": "rho", "ellipsoid": "chord",
-                   "hemi-ellipsoid": "chord"}
-
-
-def radial_rule(shape, nodes):
-    """Nodes ρ and area weights (summing to 1) of the disc quadrature for ``shape``."""
-    x, w = leggauss(nodes)
-    x, w = 0.5 * (x + 1.0), 0.5 * w
-    if RADIAL_VARIABLE.get(shape, "rho") == "rho":
-        return x, 2.0 * x * w  # d(ρ²) = 2ρ dρ
-    return np.sqrt(1.0 - x * x), 2.0 * x * w  # ρ² = 1 − u², d(ρ²) = −2u du
-
-
-class _Table:
-    """Tail integral Q(t) = ∫_t^{h_last} f dh of samples f on a uniform grid (per row).
-
-    Cells are integrated by the four-point rule δ/24·(−f₋₁ + 13f₀ + 13f₁ − f₂) (fourth
-    order; the ghost values beyond the grid ends are quadratic extrapolations, so a
-    density that jumps at a grid end costs nothing), and Q is read between nodes by cubic
-    Hermite interpolation with the exact slopes Q' = −f.
-    """
-
-    def __init__(self, f, step):
-        padded = np.empty((*f.shape[:-1], f.shape[-1] + 2))
-        padded[..., 1:-1] = f
-        if f.shape[-1] >= 3:
-            padded[..., 0] = 3 * f[..., 0] - 3 * f[..., 1] + f[..., 2]
-            padded[..., -1] = 3 * f[..., -1] - 3 * f[..., -2] + f[..., -3]
-        else:
-            padded[..., 0] = padded[..., -1] = 0.0
-        cell = 13.0 * (padded[..., 1:-2] + padded[..., 2:-1])
-        cell -= padded[..., :-3] + padded[..., 3:]
-        scale = (step / 24.0).reshape((-1,) + (1,) * (f.ndim - 1))
-        q = np.zeros(f.shape)
-        q[..., :-1] = np.cumsum(cell[..., ::-1], axis=-1)[..., ::-1]
-        q *= scale
-        self.q = q
-        self._flat_q = q.ravel()
-        self._flat_d = (f * (24.0 * scale)).ravel()  # −dQ/dk per grid step
-        self.nodes = q.shape[-1]
-
-    def at(self, rows, i, t):
-        """Q at cell ``i`` and fraction ``t`` of rows starting at flat node ``rows``."""
-        idx = rows + i
-        q0, q1 = self._flat_q[idx], self._flat_q[idx + 1]
-        d0, d1 = self._flat_d[idx], self._flat_d[idx + 1]
-        # cubic Hermite with values q0, q1 and slopes −d0, −d1 (per grid step)
-        delta = q1 - q0
-        return q0 - t * (d0 - t * (3 * delta + 2 * d0 + d1 - t * (2 * delta + d0 + d1)))
-
-
-def _position(x, lo, inv, nh):
-    p = np.clip((x - lo) * inv, 0.0, nh - 1.0)
-    i = np.minimum(p.astype(np.intp), nh - 2)
-    return i, p - i
-
-
-def _cubic(values, z, step):
-    """Catmull–Rom interpolation of ``values`` (n, m) on grids 0, step, … at z (n, e).
-
-    Beyond the last node the values are taken as zero (no crown above the tallest tree).
-    """
-    n, m = values.shape
-    y = np.zeros((n, m + 3))
-    y[:, 1 : m + 1] = values
-    y[:, 0] = 2 * values[:, 0] - values[:, 1]  # linear extrapolation below z = 0
-    y0, y1, y2, y3 = y[:, :-3], y[:, 1:-2], y[:, 2:-1], y[:, 3:]
-    coef = np.empty((n, m, 4))
-    coef[..., 0] = y1
-    coef[..., 1] = 0.5 * (y2 - y0)
-    coef[..., 2] = y0 - 2.5 * y1 + 2 * y2 - 0.5 * y3
-    coef[..., 3] = 0.5 * (y3 - y0) + 1.5 * (y1 - y2)
-    p = np.clip(z / step[:, None], 0.0, m - 1.0)
-    i = p.astype(np.intp)
-    t = p - i
-    c = coef.reshape(-1, 4)[(np.arange(n) * m)[:, None] + i]
-    return c[..., 0] + t * (c[..., 1] + t * (c[..., 2] + t * c[..., 3]))

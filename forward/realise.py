@@ -110,7 +110,9 @@ def realise(params, area, rng, pattern="poisson", origin=(0.0, 0.0), **options) 
     try:
         draw = POINT_PATTERNS[pattern]
     except KeyError:
-        raise ValueError(f"unknown point pattern {pattern!r}; known: {sorted(POINT_PATTERNS)}")
+        raise ValueError(
+            f"unknown point pattern {pattern!r}; known: {sorted(POINT_PATTERNS)}"
+        ) from None
     x, y = draw(rng, params.density_per_m2 * width * length, width, length, **options)
     height, shape = draw_heights(params, x.size, rng)
     return Stand(

@@ -22,14 +22,14 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-import forward as fw  # noqa: E402
-from forward import derived  # noqa: E402
-from forward.examples import jack_pine  # noqa: E402
-from forward.expected import ExpectedWaveformModel  # noqa: E402
-from forward.paper_stands import (  # noqa: E402
+import forward as fw
+from forward import derived
+from forward.examples import jack_pine
+from forward.expected import ExpectedWaveformModel
+from forward.paper_stands import (
     SUCCESSIONAL,
     jack_pine_instrument,
     jack_pine_params,
@@ -95,9 +95,13 @@ def jack_pine_figures(quick):
     centres = slice(0, 3) if quick else slice(0, 9)
     for k, shape in enumerate(SHAPES):
         scene = jack_pine(shape)
-        waves = sim.simulate_many(scene.stand, scene.centers[centres], heights=heights,
-                                  ground=scene.ground,
-                                  canopy_reflectance=scene.canopy_reflectance)
+        waves = sim.simulate_many(
+            scene.stand,
+            scene.centers[centres],
+            heights=heights,
+            ground=scene.ground,
+            canopy_reflectance=scene.canopy_reflectance,
+        )
         first = waves[0]
         axes6[k].plot(first.crown_volume / first.crown_volume.max(), heights, "k-")
         axes6[k].plot(first.samples / first.samples.max(), heights, "k:")
@@ -113,13 +117,18 @@ def jack_pine_figures(quick):
         model = expected(jack_pine_params(shape), instrument, heights)
         prof = derived.crown_volume_profile(jack_pine_params(shape), heights)
         results[shape] = {
-            "rise_distance_m_nine_footprints": rise_distance(heights, np.where(
-                heights > 2.0, mean, 0.0)),
+            "rise_distance_m_nine_footprints": rise_distance(
+                heights, np.where(heights > 2.0, mean, 0.0)
+            ),
             "rise_distance_m_expected": rise_distance(heights, model.canopy[0]),
             "waveform_canopy_peak_m": float(heights[np.argmax(model.canopy[0])]),
             "crown_volume_peak_m": float(heights[np.argmax(prof)]),
             "crown_volume_per_10m_footprint_m3": derived.crown_volume_per_ha(
-                jack_pine_params(shape)) * np.pi * 25 / 1e4,
+                jack_pine_params(shape)
+            )
+            * np.pi
+            * 25
+            / 1e4,
         }
     axes6[0].set_ylabel("height (m)")
     fig6.suptitle("Fig. 6: first jack pine footprint (solid: crown volume, dotted: waveform)")
@@ -138,13 +147,17 @@ def jack_pine_figures(quick):
 
 def tier_split(heights, volume):
     """Height (m) of the crown-volume minimum between the two tiers."""
-    peaks = [j for j in range(1, volume.size - 1)
-             if volume[j] > volume[j - 1] and volume[j] >= volume[j + 1]
-             and volume[j] > 0.05 * volume.max()]
+    peaks = [
+        j
+        for j in range(1, volume.size - 1)
+        if volume[j] > volume[j - 1]
+        and volume[j] >= volume[j + 1]
+        and volume[j] > 0.05 * volume.max()
+    ]
     if len(peaks) < 2:
         return None
     lo, hi = peaks[0], peaks[-1]
-    return float(heights[lo + int(np.argmin(volume[lo:hi + 1]))])
+    return float(heights[lo + int(np.argmin(volume[lo : hi + 1]))])
 
 
 def successional_figures(quick):
@@ -166,8 +179,13 @@ def successional_figures(quick):
         ax.plot(out.samples[0] / wmax, heights, "k:", label="expected waveform")
         if not quick:
             scene = successional_scene(age)
-            w = sim.simulate(scene.stand, scene.centers[0], heights=heights,
-                             ground=scene.ground, canopy_reflectance=scene.canopy_reflectance)
+            w = sim.simulate(
+                scene.stand,
+                scene.centers[0],
+                heights=heights,
+                ground=scene.ground,
+                canopy_reflectance=scene.canopy_reflectance,
+            )
             ax.plot(w.samples / wmax, heights, color="0.6", lw=0.8, label="one realisation")
         ax.set_title(f"{age} years")
         ax.set_xlabel("normalised")
@@ -188,11 +206,13 @@ def successional_figures(quick):
             below = heights < split
             upper_volume = volume[~below].sum() / volume.sum()
             entry["upper_tier_volume_fraction"] = float(upper_volume)
-            entry["upper_tier_waveform_fraction"] = float(canopy[~below & (heights > 1.5)].sum()
-                                                          / canopy[heights > 1.5].sum())
+            entry["upper_tier_waveform_fraction"] = float(
+                canopy[~below & (heights > 1.5)].sum() / canopy[heights > 1.5].sum()
+            )
             # waveform share over volume share in the lower tier
             entry["lower_tier_visibility"] = float(
-                (1 - entry["upper_tier_waveform_fraction"]) / (1 - upper_volume))
+                (1 - entry["upper_tier_waveform_fraction"]) / (1 - upper_volume)
+            )
             # E[P] at the split: the beam fraction that reaches the lower tier
             model = ExpectedWaveformModel(instrument, heights, params)
             entry["transmission_to_lower_tier"] = float(model.gap(params, [split])[0, 0])
@@ -237,27 +257,40 @@ def main():
     ages = [str(a) for a in SUCCESSIONAL]
     checks = {
         "cones_rise_slower_than_ellipsoids_and_hemi_ellipsoids_jack_pine": bool(
-            rise["cone"] > max(rise["ellipsoid"], rise["hemi-ellipsoid"])),
+            rise["cone"] > max(rise["ellipsoid"], rise["hemi-ellipsoid"])
+        ),
         "cones_rise_slower_nine_footprint_average": bool(
-            rise9["cone"] > max(rise9["ellipsoid"], rise9["hemi-ellipsoid"])),
+            rise9["cone"] > max(rise9["ellipsoid"], rise9["hemi-ellipsoid"])
+        ),
         "cones_rise_slower_200_year_stand": bool(
-            rise200["cone"] > max(rise200["ellipsoid"], rise200["hemi-ellipsoid"])),
-        "waveform_peak_above_crown_volume_peak": bool(all(
-            jp[s]["waveform_canopy_peak_m"] > jp[s]["crown_volume_peak_m"] for s in SHAPES)
-            and jp["fig1"]["waveform_canopy_peak_m"] > jp["fig1"]["crown_volume_peak_m"]),
+            rise200["cone"] > max(rise200["ellipsoid"], rise200["hemi-ellipsoid"])
+        ),
+        "waveform_peak_above_crown_volume_peak": bool(
+            all(jp[s]["waveform_canopy_peak_m"] > jp[s]["crown_volume_peak_m"] for s in SHAPES)
+            and jp["fig1"]["waveform_canopy_peak_m"] > jp["fig1"]["crown_volume_peak_m"]
+        ),
         "five_year_ground_peak_is_the_largest_return": bool(
             su["5"]["ground_peak_is_waveform_max"]
-            and su["5"]["waveform_max"] == max(su[a]["waveform_max"] for a in ages)),
+            and su["5"]["waveform_max"] == max(su[a]["waveform_max"] for a in ages)
+        ),
         "two_hundred_year_stand_has_the_largest_crown_volume": bool(
-            su["200"]["crown_volume_max"] == max(su[a]["crown_volume_max"] for a in ages)),
-        "lower_tier_holds_more_volume_at_20_and_60_years": bool(all(
-            su[a].get("upper_tier_volume_fraction", 1.0) < 0.5 for a in ("20", "60"))),
+            su["200"]["crown_volume_max"] == max(su[a]["crown_volume_max"] for a in ages)
+        ),
+        "lower_tier_holds_more_volume_at_20_and_60_years": bool(
+            all(su[a].get("upper_tier_volume_fraction", 1.0) < 0.5 for a in ("20", "60"))
+        ),
         "upper_tier_of_200_year_stand_occults_the_lower": bool(
             su["200"].get("transmission_to_lower_tier", 1.0) < 0.5
-            and min(su[a].get("transmission_to_lower_tier", 0.0) for a in ("20", "60")) > 0.7),
+            and min(su[a].get("transmission_to_lower_tier", 0.0) for a in ("20", "60")) > 0.7
+        ),
     }
-    summary = {"checks": checks, "all_hold": all(checks.values()), "jack_pine": jp,
-               "successional": su, "quick": args.quick}
+    summary = {
+        "checks": checks,
+        "all_hold": all(checks.values()),
+        "jack_pine": jp,
+        "successional": su,
+        "quick": args.quick,
+    }
     (OUT / "summary.json").write_text(json.dumps(summary, indent=2))
     print(json.dumps(checks, indent=2))
 

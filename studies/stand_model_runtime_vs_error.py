@@ -36,9 +36,15 @@ TARGET_US, TARGET_ERROR = 20.0, 1e-3
 
 def scene():
     template = StandParams(
-        density=600.0, height_mean=18.0, height_sd=4.0, height_family="weibull",
-        shape_mix={"cone": 0.5, "ellipsoid": 0.5}, crown_length_ratio=0.5,
-        crown_radius_intercept=0.3, crown_radius_slope=0.1, favd=0.7,
+        density=600.0,
+        height_mean=18.0,
+        height_sd=4.0,
+        height_family="weibull",
+        shape_mix={"cone": 0.5, "ellipsoid": 0.5},
+        crown_length_ratio=0.5,
+        crown_radius_intercept=0.3,
+        crown_radius_slope=0.1,
+        favd=0.7,
     )
     instrument = fw.instrument_preset("gedi")
     heights = np.arange(-60, 207) * instrument.bin_height  # −9 m to 31 m
@@ -76,19 +82,25 @@ def main():
         grid = list(itertools.product((3, 4, 6), (16, 24, 32), (16, 24)))
         repeats = 5
     else:
-        grid = list(itertools.product((3, 4, 5, 6, 8), (12, 16, 24, 32, 48),
-                                      (12, 16, 24, 32, None)))
+        grid = list(
+            itertools.product((3, 4, 5, 6, 8), (12, 16, 24, 32, 48), (12, 16, 24, 32, None))
+        )
         repeats = 15
     rows = []
     for radial, nodes, depth in grid:
         settings = ModelSettings(radial_nodes=radial, height_nodes=nodes, depth_nodes=depth)
         model = ExpectedWaveformModel(instrument, heights, template, settings=settings)
         errors = np.abs(model(theta) - ref).sum(1) / ref.sum(1)
-        rows.append({
-            "radial_nodes": radial, "height_nodes": nodes, "depth_nodes": depth,
-            "us_per_waveform": 1e6 * best_time(model, theta, repeats),
-            "l1_error_mean": float(errors.mean()), "l1_error_max": float(errors.max()),
-        })
+        rows.append(
+            {
+                "radial_nodes": radial,
+                "height_nodes": nodes,
+                "depth_nodes": depth,
+                "us_per_waveform": 1e6 * best_time(model, theta, repeats),
+                "l1_error_mean": float(errors.mean()),
+                "l1_error_max": float(errors.max()),
+            }
+        )
     meeting = [r for r in rows if r["l1_error_max"] <= TARGET_ERROR]
     best = min(meeting, key=lambda r: r["us_per_waveform"]) if meeting else None
     default = ModelSettings()
@@ -99,7 +111,8 @@ def main():
         "batch": int(theta.shape[0]),
         "target": {"us_per_waveform": TARGET_US, "l1_error": TARGET_ERROR},
         "default_settings": {
-            "radial_nodes": default.radial_nodes, "height_nodes": default.height_nodes,
+            "radial_nodes": default.radial_nodes,
+            "height_nodes": default.height_nodes,
             "depth_nodes": default.depth_nodes,
             "us_per_waveform": 1e6 * best_time(default_model, theta, repeats),
             "l1_error_max": float(default_errors.max()),
@@ -110,8 +123,15 @@ def main():
     }
     (OUT / "summary.json").write_text(json.dumps(summary, indent=2))
     plot(rows, OUT / "pareto.png")
-    print(json.dumps({k: summary[k] for k in ("default_settings", "fastest_meeting_error_target",
-                                              "target_met")}, indent=2))
+    print(
+        json.dumps(
+            {
+                k: summary[k]
+                for k in ("default_settings", "fastest_meeting_error_target", "target_met")
+            },
+            indent=2,
+        )
+    )
 
 
 def plot(rows, path):
@@ -123,8 +143,12 @@ def plot(rows, path):
     fig, ax = plt.subplots(figsize=(6, 4.5))
     for radial in sorted({r["radial_nodes"] for r in rows}):
         sel = [r for r in rows if r["radial_nodes"] == radial]
-        ax.scatter([r["us_per_waveform"] for r in sel], [r["l1_error_max"] for r in sel],
-                   label=f"{radial} radial nodes", s=18)
+        ax.scatter(
+            [r["us_per_waveform"] for r in sel],
+            [r["l1_error_max"] for r in sel],
+            label=f"{radial} radial nodes",
+            s=18,
+        )
     ax.axvline(TARGET_US, color="k", ls=":", lw=1)
     ax.axhline(TARGET_ERROR, color="k", ls=":", lw=1)
     ax.set_xscale("log")

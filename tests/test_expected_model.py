@@ -1,6 +1,8 @@
 """The expected-waveform model: Monte Carlo agreement with the explicit engine, its own
 convergence, and the properties the sampler relies on."""
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -13,8 +15,14 @@ INSTRUMENT = fw.instrument_preset("gedi", footprint_sigma_m=2.5)
 
 
 def _params(**changes):
-    base = dict(density=600.0, height_mean=15.0, height_sd=3.0, crown_length_ratio=0.5,
-                crown_radius_slope=0.12, favd=0.8)
+    base = dict(
+        density=600.0,
+        height_mean=15.0,
+        height_sd=3.0,
+        crown_length_ratio=0.5,
+        crown_radius_slope=0.12,
+        favd=0.8,
+    )
     base.update(changes)
     return StandParams(**base)
 
@@ -25,12 +33,17 @@ MC_CASES = {
     "hemi-ellipsoid": _params(shape_mix="hemi-ellipsoid", height_family="lognormal"),
     "cylinder": _params(shape_mix="cylinder", density=300.0, favd=0.5),
     "mixed two-tier": _params(
-        shape_mix={"cone": 0.3, "ellipsoid": 0.7}, height_family="truncnorm",
-        cohort2_fraction=0.6, cohort2_height_mean=6.0, cohort2_height_sd=1.5,
-        cohort2_shape_mix="cone", density=900.0,
+        shape_mix={"cone": 0.3, "ellipsoid": 0.7},
+        height_family="truncnorm",
+        cohort2_fraction=0.6,
+        cohort2_height_mean=6.0,
+        cohort2_height_sd=1.5,
+        cohort2_shape_mix="cone",
+        density=900.0,
     ),
-    "understory": _params(shape_mix="ellipsoid", density=400.0, understory_height=2.0,
-                          understory_lai=1.0),
+    "understory": _params(
+        shape_mix="ellipsoid", density=400.0, understory_height=2.0, understory_lai=1.0
+    ),
 }
 
 
@@ -46,12 +59,19 @@ def test_mean_of_explicit_realisations_matches_expectation(case):
     rng = np.random.default_rng(20001)
     side = 2 * (sim.footprint_radius + 6.0)
     n = 300
-    runs = np.array([
-        sim.simulate(realise(params, side, rng, origin=(-side / 2, -side / 2)), (0.0, 0.0),
-                     heights=heights, ground=ground, canopy_reflectance=rho_v,
-                     understory=understory).samples
-        for _ in range(n)
-    ])
+    runs = np.array(
+        [
+            sim.simulate(
+                realise(params, side, rng, origin=(-side / 2, -side / 2)),
+                (0.0, 0.0),
+                heights=heights,
+                ground=ground,
+                canopy_reflectance=rho_v,
+                understory=understory,
+            ).samples
+            for _ in range(n)
+        ]
+    )
     mean, se = runs.mean(0), runs.std(0, ddof=1) / np.sqrt(n)
     # bins with a usable standard error (elsewhere both are ~0)
     usable = se > 0.05 * se.max()
@@ -87,15 +107,16 @@ def test_quadrature_converges_to_reference():
     ref = reference(theta)
 
     def error(**settings):
-        model = ExpectedWaveformModel(INSTRUMENT, heights, params,
-                                      settings=ModelSettings(**settings))
+        model = ExpectedWaveformModel(
+            INSTRUMENT, heights, params, settings=ModelSettings(**settings)
+        )
         return np.max(np.abs(model(theta) - ref).sum(1) / ref.sum(1))
 
     radial = [error(radial_nodes=j, height_nodes=256, depth_nodes=None) for j in (2, 4, 8, 16)]
-    assert all(b < a for a, b in zip(radial, radial[1:])), radial
+    assert all(b < a for a, b in itertools.pairwise(radial)), radial
     assert radial[-1] < 1e-4
     grid = [error(radial_nodes=32, height_nodes=h, depth_nodes=None) for h in (8, 16, 32, 64)]
-    assert all(b < a for a, b in zip(grid, grid[1:])), grid
+    assert all(b < a for a, b in itertools.pairwise(grid)), grid
     assert grid[-1] < 1e-4
     depth = [error(radial_nodes=32, height_nodes=256, depth_nodes=d) for d in (8, 16, 32, 64)]
     assert depth[-1] < depth[0] and depth[-1] < 5e-4, depth
@@ -118,8 +139,9 @@ def test_batch_shape_and_invalid_rows_are_masked_not_raised():
     assert np.array_equal(model.valid(theta), out.valid)
     # a batch of parameter objects gives the same rows as their vectors
     objects = model([params, params.with_values(density=300.0)])
-    vectors = model(np.array([model.vector(params),
-                              model.vector(params.with_values(density=300.0))]))
+    vectors = model(
+        np.array([model.vector(params), model.vector(params.with_values(density=300.0))])
+    )
     np.testing.assert_allclose(objects, vectors)
 
 

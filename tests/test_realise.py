@@ -8,11 +8,21 @@ from forward.realise import realise, scene_extras
 from forward.stand_params import StandParams
 
 PARAMS = StandParams(
-    density=800.0, height_mean=16.0, height_sd=4.0, shape_mix={"cone": 0.4, "ellipsoid": 0.6},
-    cohort2_fraction=0.3, cohort2_height_mean=5.0, cohort2_height_sd=1.0,
-    cohort2_shape_mix="hemi-ellipsoid", crown_length_ratio=0.5, crown_radius_intercept=0.3,
-    crown_radius_slope=0.08, favd=0.7, favd_ratio={"hemi-ellipsoid": 1.5},
-    understory_height=1.5, understory_lai=0.4,
+    density=800.0,
+    height_mean=16.0,
+    height_sd=4.0,
+    shape_mix={"cone": 0.4, "ellipsoid": 0.6},
+    cohort2_fraction=0.3,
+    cohort2_height_mean=5.0,
+    cohort2_height_sd=1.0,
+    cohort2_shape_mix="hemi-ellipsoid",
+    crown_length_ratio=0.5,
+    crown_radius_intercept=0.3,
+    crown_radius_slope=0.08,
+    favd=0.7,
+    favd_ratio={"hemi-ellipsoid": 1.5},
+    understory_height=1.5,
+    understory_lai=0.4,
 )
 
 
@@ -30,7 +40,8 @@ def test_poisson_realisation_marks_follow_the_parameters():
     # crown volume and leaf area per hectare against their expectations
     area_ha = 500.0**2 / 1e4
     assert stand.crown_volume.sum() / area_ha == pytest.approx(
-        derived.crown_volume_per_ha(PARAMS), rel=0.02)
+        derived.crown_volume_per_ha(PARAMS), rel=0.02
+    )
     lai = stand.leaf_area.sum() / 500.0**2 + PARAMS.understory_lai
     assert lai == pytest.approx(derived.leaf_area_index(PARAMS), rel=0.02)
     assert np.mean(stand.height) == pytest.approx(derived.mean_height(PARAMS), rel=0.01)
@@ -59,10 +70,11 @@ def test_expected_tallest_tree_and_dominant_height():
         inside = (stand.x - 12.5) ** 2 + (stand.y - 12.5) ** 2 <= 12.5**2
         tallest.append(stand.height[inside].max(initial=0.0))
     se = np.std(tallest) / np.sqrt(len(tallest))
-    assert np.mean(tallest) == pytest.approx(derived.expected_max_height(PARAMS, diameter),
-                                             abs=4 * se)
+    assert np.mean(tallest) == pytest.approx(
+        derived.expected_max_height(PARAMS, diameter), abs=4 * se
+    )
     big = realise(PARAMS, 300.0, rng)
-    top = np.sort(big.height)[-int(100 * 9):]  # 100 per ha over 9 ha
+    top = np.sort(big.height)[-(100 * 9) :]  # 100 per ha over 9 ha
     assert derived.dominant_height(PARAMS) == pytest.approx(top.mean(), abs=0.3)
 
 
@@ -76,8 +88,11 @@ def test_clustered_and_regular_patterns_keep_the_density():
     rng = np.random.default_rng(14)
     side, cells = 160.0, 8
     counts = {}
-    for pattern, options in [("poisson", {}), ("thomas", {"cluster_size": 8, "cluster_sd": 2.0}),
-                             ("hardcore", {"min_distance": 2.5})]:
+    for pattern, options in [
+        ("poisson", {}),
+        ("thomas", {"cluster_size": 8, "cluster_sd": 2.0}),
+        ("hardcore", {"min_distance": 2.5}),
+    ]:
         stand = realise(PARAMS, side, rng, pattern=pattern, **options)
         assert stand.n_trees == pytest.approx(PARAMS.density_per_m2 * side**2, rel=0.1)
         counts[pattern] = np.histogram2d(stand.x, stand.y, cells, [[0, side]] * 2)[0].ravel()

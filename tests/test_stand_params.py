@@ -1,5 +1,7 @@
 """The stand parameter object and its height-distribution registry."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -24,25 +26,38 @@ def test_truncated_normal_is_bounded():
     assert low.ppf(0.0) == pytest.approx(0.0, abs=1e-12)
 
 
-def test_registry_and_fast_paths_agree():
-    for family in HEIGHT_DISTRIBUTIONS.values():
-        x = np.linspace(1, 30, 7)
-        np.testing.assert_allclose(family.pdf(x, 14.0, 3.0), family.frozen(14.0, 3.0).pdf(x))
+@pytest.mark.parametrize("family", sorted(HEIGHT_DISTRIBUTIONS))
+@pytest.mark.parametrize("mean, sd", [(14.0, 3.0), (2.0, 1.5), (25.0, 0.4)])
+def test_closed_forms_agree_with_scipy_stats(family, mean, sd):
+    fam = HEIGHT_DISTRIBUTIONS[family]
+    frozen = fam.frozen(mean, sd, 2.5)
+    x = np.linspace(0.1, 40.0, 97)
+    np.testing.assert_allclose(fam.pdf(x, mean, sd, 2.5), frozen.pdf(x), rtol=1e-9, atol=1e-300)
+    q = np.array([1e-9, 1e-6, 0.1, 0.5, 0.9])
+    np.testing.assert_allclose(fam.ppf(q, mean, sd, 2.5), frozen.ppf(q), rtol=1e-7)
+    np.testing.assert_allclose(fam.isf(q, mean, sd, 2.5), frozen.isf(q), rtol=1e-7)
 
 
 def test_shape_mix_accepts_names_and_mappings():
-    p = StandParams(density=500, height_mean=15, height_sd=3,
-                    shape_mix={"cone": 0.25, "ellipsoid": 0.75})
+    p = StandParams(
+        density=500, height_mean=15, height_sd=3, shape_mix={"cone": 0.25, "ellipsoid": 0.75}
+    )
     assert p.shape_mix == (0.25, 0.75, 0.0, 0.0)
     assert p.cohort2_shape_mix == p.shape_mix
-    q = StandParams(density=500, height_mean=15, height_sd=3, shape_mix="cylinder",
-                    favd=0.5, favd_ratio={"cylinder": 2.0})
+    q = StandParams(
+        density=500,
+        height_mean=15,
+        height_sd=3,
+        shape_mix="cylinder",
+        favd=0.5,
+        favd_ratio={"cylinder": 2.0},
+    )
     assert q.shape_mix == (0.0, 0.0, 0.0, 1.0)
     np.testing.assert_allclose(q.favd_by_shape(), [0.5, 0.5, 0.5, 1.0])
     assert q.crown_radius(10.0) == pytest.approx(1.0)
     assert q.crown_length(10.0) == pytest.approx(5.0)
-    with pytest.raises(Exception):
-        q.density = 3.0  # frozen
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        q.density = 3.0
 
 
 @pytest.mark.parametrize(
