@@ -72,7 +72,10 @@ VECTOR_FIELDS = (
     "canopy_reflectance",
     "ground_reflectance",
     "ground_elevation",
-)
+) + tuple(f"mix_{name}" for name in SHAPE_NAMES)
+
+#: Vector fields holding cohort 1's crown-shape fractions (≥ 0, summing to 1).
+MIX_FIELDS = tuple(f"mix_{name}" for name in SHAPE_NAMES)
 
 #: The default free parameters of :class:`ExpectedWaveformModel` (its vector layout).
 DEFAULT_FREE = (
@@ -203,7 +206,8 @@ class ExpectedWaveformModel:
         self._edges = origin + (self._layer0 + np.arange(n_layers + 1)) * self.layer_height
         # radial quadrature and the per-shape chord fractions
         mixes = np.array([template.shape_mix, template.cohort2_shape_mix])
-        self._shapes = [k for k in range(len(SHAPE_NAMES)) if mixes[:, k].any()]
+        free_mix = [f"mix_{name}" in self.parameter_names for name in SHAPE_NAMES]
+        self._shapes = [k for k in range(len(SHAPE_NAMES)) if mixes[:, k].any() or free_mix[k]]
         self._mixes = mixes
         self._s_lo, self._s_hi, self._weights = [], [], []
         for k in self._shapes:
@@ -224,6 +228,7 @@ class ExpectedWaveformModel:
         """All of :data:`VECTOR_FIELDS` for one parameter object."""
         values = params.as_dict()
         values["ground_elevation"] = ground_elevation
+        values.update(zip(MIX_FIELDS, params.shape_mix))
         return np.array([float(values[name]) for name in VECTOR_FIELDS])
 
     def vector(self, params: StandParams, ground_elevation=0.0) -> np.ndarray:
@@ -235,6 +240,8 @@ class ExpectedWaveformModel:
             "favd_ratio",
             "height_truncation",
         ):
+            if name == "shape_mix" and set(MIX_FIELDS) & set(self.parameter_names):
+                continue  # the mix is (partly) free
             if getattr(params, name) != getattr(self.template, name):
                 raise ValueError(f"{name} differs from the model's template; build a new model")
         return self.full_vector(params, ground_elevation)[self._free_index]
@@ -265,6 +272,8 @@ class ExpectedWaveformModel:
         ok &= (col("crown_radius_intercept") >= 0) & (col("crown_radius_slope") > 0)
         ok &= (col("favd") > 0) & (col("understory_height") > 0) & (col("understory_lai") >= 0)
         ok &= (col("canopy_reflectance") >= 0) & (col("ground_reflectance") >= 0)
+        mix = v[:, [_I[name] for name in MIX_FIELDS]]
+        ok &= np.all(mix >= 0, axis=1) & (np.abs(mix.sum(axis=1) - 1.0) < 1e-6)
         t = self.template.height_truncation
         ok &= self._family.valid(col("height_mean"), col("height_sd"), t)
         two = col("cohort2_fraction") > 0
@@ -404,8 +413,11 @@ class ExpectedWaveformModel:
             g_cohort = scale[:, None] * radius**2 * pdf
             inv = (1.0 / step)[:, None, None]
             for k, shape in enumerate(self._shapes):
-                fraction = self._mixes[cohort, shape]
-                if fraction == 0:
+                if cohort == 0:  # cohort 1's mix is part of the vector
+                    fraction = v[:, _I[MIX_FIELDS[shape]], None]
+                else:
+                    fraction = self._mixes[cohort, shape]
+                if not np.any(fraction):
                     continue
                 g_h = fraction * g_cohort
                 ku = (self._kappa * v[:, _I["favd"]] * favd[shape])[:, None]

@@ -12,6 +12,8 @@ import sys
 COMMANDS = {
     "simulate": "lidarinv.cli.simulate",
     "metrics": "lidarinv.cli.metrics",
+    "invert": "lidarinv.cli.invert",
+    "batch": "lidarinv.cli.batch",
 }
 
 
