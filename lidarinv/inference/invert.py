@@ -1,0 +1,118 @@
+"""Invert one shot: build the posterior, sample it, and collect the result."""
+
+import emcee
+import numpy as np
+
+from lidarinv.observe.observation import Observation
+
+from .posterior import BLOB_NAMES, BLOB_UNITS
+from .problem import InversionProblem, InversionSettings, build_problem
+from .result import QUANTILES, InversionResult
+from .sampling import SamplerRun, run_sampler
+
+#: Posterior samples used for the predictive band and the crown-volume profile.
+_BAND_SAMPLES = 400
+
+
+def invert_shot(
+    observation: Observation,
+    settings: InversionSettings | None = None,
+    *,
+    rng: np.random.Generator | None = None,
+    progress: bool = False,
+    backend_path=None,
+) -> InversionResult:
+    """Sample the posterior of the stand parameters for one observed waveform.
+
+    Parameters
+    ----------
+    observation : Observation
+    settings : InversionSettings, optional
+    rng : numpy.random.Generator, optional
+        Source of all randomness (a fresh default generator if omitted).
+    progress : bool
+        Show a progress bar.
+    backend_path : path, optional
+        HDF5 file for the emcee chain (group ``shot_<id>``); a run found there is resumed.
+
+    Raises
+    ------
+    ValueError
+        If the shot has no usable signal or ground peak.
+    """
+    rng = np.random.default_rng() if rng is None else rng
+    problem = build_problem(observation, settings)
+    backend = None
+    if backend_path is not None:
+        backend = emcee.backends.HDFBackend(str(backend_path), name=f"shot_{observation.shot_id}")
+    run = run_sampler(
+        problem.log_posterior,
+        problem.space,
+        rng,
+        problem.settings.sampler,
+        backend=backend,
+        progress=progress,
+    )
+    return collect_result(problem, run, rng)
+
+
+def _flat(array, run: SamplerRun):
+    return array[run.burn :: run.thin].reshape(-1, *array.shape[2:])
+
+
+def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> InversionResult:
+    """Posterior samples, derived quantities, bands and diagnostics of a finished run."""
+    space, post = problem.space, problem.log_posterior
+    u = _flat(run.chain, run)
+    x, _ = space.from_unbounded(u)
+    log_prob = _flat(run.log_prob, run)
+    blobs = _flat(run.blobs, run)
+    derived = {name: blobs[:, i] for i, name in enumerate(BLOB_NAMES)}
+    pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
+    terms = post.evaluate(x[pick], keep_signal=True)
+    good = np.isfinite(terms.log_posterior)
+    predictive = np.percentile(terms.mean[good], QUANTILES, axis=0)
+    values = space.values(x[pick][good])
+    top = float(np.max(values["top_height"]))
+    profile_heights = np.linspace(0.0, top, 60)
+    profile = post.mapping.crown_volume_profile(values, profile_heights)
+    n_kept = run.chain.shape[0] - run.burn
+    ess = n_kept * run.chain.shape[1] / np.where(np.isfinite(run.tau), run.tau, np.inf)
+    a = problem.analysis
+    truth = {
+        k: float(v)
+        for k, v in problem.observation.truth.items()
+        if np.ndim(v) == 0 and isinstance(v, (int, float, np.floating))
+    }
+    return InversionResult(
+        shot_id=problem.observation.shot_id,
+        parameter_names=space.names,
+        units={**{p.name: p.units for p in space.parameters}, **BLOB_UNITS},
+        samples=x,
+        log_prob=log_prob,
+        derived=derived,
+        fixed={p.name: p.fixed for p in space.parameters if not p.free},
+        diagnostics={
+            "tau": run.tau,
+            "acceptance": run.acceptance,
+            "ess": ess,
+            "n_steps": int(run.chain.shape[0]),
+            "n_walkers": int(run.chain.shape[1]),
+            "burn": run.burn,
+            "thin": run.thin,
+            "converged": run.converged,
+            "map_log_prob": float(np.max(run.log_prob)),
+            "tau_history": [[int(i), t] for i, t in run.tau_history],
+        },
+        flags=list(run.flags),
+        profile_heights=profile_heights,
+        profile=np.percentile(profile, QUANTILES, axis=0),
+        axis=problem.window.axis,
+        observed=problem.window.samples,
+        censored=problem.window.censored,
+        predictive=predictive,
+        noise_floor=float(a.noise_mean + problem.settings.n_sigma * a.noise_sigma),
+        priors=space.describe(),
+        settings=problem.settings.describe(),
+        truth=truth,
+    )

@@ -1,0 +1,226 @@
+"""Inversion parameters: names, units, priors, fixed values, and the unbounded coordinates.
+
+The default parameterisation uses quantities a waveform identifies (crown cover and
+plant area index rather than stem density and FAVD, the top height of the height
+distribution rather than its mean) plus the nuisance parameters of the observation model
+(ground elevation, gain, baseline, noise σ and the reflectance ratio ρv/ρg).
+"""
+
+import tomllib
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .priors import LogUniform, TruncatedNormal, Uniform, make_prior
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One inversion parameter.
+
+    Parameters
+    ----------
+    name : str
+    units : str
+    prior : Uniform, LogUniform or TruncatedNormal
+    fixed : float or None
+        If set, the parameter is held at this value and not sampled.
+    description : str
+    """
+
+    name: str
+    units: str
+    prior: object
+    fixed: float | None = None
+    description: str = ""
+
+    @property
+    def free(self) -> bool:
+        return self.fixed is None
+
+
+#: Structural parameters of the default parameterisation: name → (units, description).
+STRUCTURE = {
+    "cover": ("1", "crown cover: fraction of ground under at least one crown"),
+    "pai": ("m2/m2", "plant area index of the tree crowns (one-sided)"),
+    "top_height": ("m", "top of the height distribution, mean + 2 sd (tallest tree)"),
+    "height_sd": ("m", "spread (sd) of the tree-height distribution"),
+    "crown_length_ratio": ("1", "crown length over tree height"),
+    "cone_fraction": ("1", "fraction of stems with conical crowns (the rest ellipsoids)"),
+    "crown_radius_slope": ("m/m", "crown radius per metre of tree height"),
+    "understory_height": ("m", "height of the uniform understory layer"),
+    "understory_lai": ("m2/m2", "leaf area index of the understory layer"),
+}
+
+#: Observation-model (nuisance) parameters: name → (units, description).
+NUISANCE = {
+    "ground_elevation": ("m", "ground elevation on the waveform axis"),
+    "gain": ("DN", "digitiser units per unit apparent reflectance (ρg = 1)"),
+    "baseline": ("DN", "noise mean"),
+    "noise_sigma": ("DN", "noise standard deviation"),
+    "rho_ratio": ("1", "canopy over ground reflectance ρv/ρg"),
+}
+
+UNITS = {name: units for name, (units, _) in {**STRUCTURE, **NUISANCE}.items()}
+
+#: Structural priors of the default parameterisation (nuisance priors depend on the shot).
+DEFAULT_STRUCTURE_PRIORS = {
+    "cover": Uniform(0.001, 0.99),
+    "pai": LogUniform(0.01, 15.0),
+    "top_height": Uniform(1.0, 80.0),
+    "height_sd": Uniform(0.1, 10.0),
+    "crown_length_ratio": Uniform(0.1, 1.0),
+    "cone_fraction": Uniform(0.0, 1.0),
+    "crown_radius_slope": LogUniform(0.02, 0.5),
+    "understory_height": Uniform(0.2, 3.0),
+    "understory_lai": Uniform(0.0, 3.0),
+}
+
+#: Held fixed unless a priors file frees them.
+DEFAULT_FIXED = {"crown_radius_slope": 0.1}
+
+#: Default prior of ρv/ρg: GEDI L2B uses 1.5.
+DEFAULT_RHO_RATIO_PRIOR = TruncatedNormal(1.5, 0.5, 0.3, 4.0)
+
+
+class ParameterSpace:
+    """An ordered set of :class:`Parameter`; the free ones form the sampled vector."""
+
+    def __init__(self, parameters):
+        self.parameters = tuple(parameters)
+        names = [p.name for p in self.parameters]
+        if len(set(names)) != len(names):
+            raise ValueError(f"duplicate parameter names in {names}")
+        self.by_name = {p.name: p for p in self.parameters}
+        self.free = tuple(p for p in self.parameters if p.free)
+        self.names = tuple(p.name for p in self.free)
+        if not self.free:
+            raise ValueError("every parameter is fixed; nothing to infer")
+
+    @property
+    def ndim(self) -> int:
+        return len(self.free)
+
+    def units(self, name) -> str:
+        return self.by_name[name].units
+
+    def values(self, x) -> dict:
+        """Every parameter's values (free from the columns of ``x`` (n, ndim), fixed filled)."""
+        x = np.atleast_2d(np.asarray(x, float))
+        out = {p.name: x[:, i] for i, p in enumerate(self.free)}
+        for p in self.parameters:
+            if not p.free:
+                out[p.name] = np.full(x.shape[0], float(p.fixed))
+        return out
+
+    def log_prior(self, x) -> np.ndarray:
+        """Sum of the free parameters' log prior densities; −inf outside the support."""
+        x = np.atleast_2d(np.asarray(x, float))
+        total = np.zeros(x.shape[0])
+        for i, p in enumerate(self.free):
+            total += p.prior.log_pdf(x[:, i])
+        return np.where(np.isfinite(total), total, -np.inf)
+
+    def from_unbounded(self, u):
+        """Physical values (n, ndim) and log|Jacobian| (n,) from unbounded coordinates."""
+        u = np.atleast_2d(np.asarray(u, float))
+        x = np.empty_like(u)
+        log_jac = np.zeros(u.shape[0])
+        for i, p in enumerate(self.free):
+            x[:, i], lj = p.prior.from_unbounded(u[:, i])
+            log_jac += lj
+        return x, log_jac
+
+    def to_unbounded(self, x):
+        x = np.atleast_2d(np.asarray(x, float))
+        with np.errstate(divide="ignore"):
+            return np.column_stack([p.prior.to_unbounded(x[:, i]) for i, p in enumerate(self.free)])
+
+    def sample_prior(self, rng, size) -> np.ndarray:
+        return np.column_stack([p.prior.sample(rng, size) for p in self.free])
+
+    def with_changes(self, changes: dict) -> "ParameterSpace":
+        """A copy with per-parameter changes: ``{name: {"prior": …, "fixed": …}}``."""
+        unknown = sorted(set(changes) - set(self.by_name))
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {unknown}; known: {sorted(self.by_name)}")
+        out = []
+        for p in self.parameters:
+            change = changes.get(p.name, {})
+            out.append(replace(p, **change) if change else p)
+        return ParameterSpace(out)
+
+    def describe(self) -> list:
+        return [
+            {
+                "name": p.name,
+                "units": p.units,
+                "fixed": p.fixed,
+                "prior": p.prior.describe(),
+                "description": p.description,
+            }
+            for p in self.parameters
+        ]
+
+
+def default_space(nuisance_priors: dict, overrides: dict | None = None) -> ParameterSpace:
+    """The default parameterisation with shot-specific nuisance priors.
+
+    Parameters
+    ----------
+    nuisance_priors : dict
+        Priors for every name in :data:`NUISANCE` except ``rho_ratio`` (optional).
+    overrides : dict, optional
+        ``{name: {"prior": prior, "fixed": value or None}}``, e.g. from a priors file.
+    """
+    priors = {**DEFAULT_STRUCTURE_PRIORS, "rho_ratio": DEFAULT_RHO_RATIO_PRIOR, **nuisance_priors}
+    params = []
+    for name, (units, description) in {**STRUCTURE, **NUISANCE}.items():
+        if name not in priors:
+            raise ValueError(f"no prior given for {name}")
+        params.append(Parameter(name, units, priors[name], DEFAULT_FIXED.get(name), description))
+    space = ParameterSpace(params)
+    return space.with_changes(overrides) if overrides else space
+
+
+def read_priors_file(path) -> dict:
+    """Prior overrides from a TOML file.
+
+    Each table is a parameter name; keys ``kind`` (uniform, log-uniform,
+    truncated-normal) with its numbers, and/or ``fixed = value``, or ``free = true`` to
+    sample a parameter that is fixed by default::
+
+        [top_height]
+        kind = "uniform"
+        lower = 5.0
+        upper = 40.0
+
+        [understory_lai]
+        fixed = 0.0
+    """
+    try:
+        with open(path, "rb") as handle:
+            table = tomllib.load(handle)
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"{path}: not valid TOML: {error}") from None
+    known = set(STRUCTURE) | set(NUISANCE)
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise ValueError(f"{path}: unknown parameter(s) {unknown}; known: {sorted(known)}")
+    changes = {}
+    for name, spec in table.items():
+        if not isinstance(spec, dict):
+            raise ValueError(f"{path}: [{name}] must be a table")
+        spec = dict(spec)
+        change = {}
+        if "fixed" in spec:
+            value = float(spec.pop("fixed"))
+            if not np.isfinite(value):
+                raise ValueError(f"{path}: [{name}] fixed value must be finite")
+            change["fixed"] = value
+        elif spec.pop("free", False) or spec:
+            change["fixed"] = None
+        if spec:
+            change["prior"] = make_prior(spec)
+        changes[name] = change
+    return changes

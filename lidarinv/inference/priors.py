@@ -1,0 +1,151 @@
+"""Priors on inversion parameters, chosen through a registry, and their unbounded transforms.
+
+Every prior here is proper and bounded, so each parameter maps to the real line by
+x = lo + (hi − lo)·σ(u) (uniform and truncated normal) or log x = log lo + (log hi −
+log lo)·σ(u) (log-uniform), with σ the logistic function. The sampler works in u; the
+log-density in u adds log|dx/du|.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import expit, log_expit, logit, ndtr, ndtri
+
+
+def _check_bounds(lower, upper, kind):
+    if not (np.isfinite(lower) and np.isfinite(upper) and lower < upper):
+        raise ValueError(
+            f"{kind} prior needs finite bounds with lower < upper, got {lower}, {upper}"
+        )
+
+
+@dataclass(frozen=True)
+class Uniform:
+    """Uniform on [lower, upper] (parameter units)."""
+
+    lower: float
+    upper: float
+
+    def __post_init__(self):
+        _check_bounds(self.lower, self.upper, "uniform")
+
+    def log_pdf(self, x):
+        x = np.asarray(x, float)
+        inside = (x >= self.lower) & (x <= self.upper)
+        return np.where(inside, -np.log(self.upper - self.lower), -np.inf)
+
+    def to_unbounded(self, x):
+        return logit((np.asarray(x, float) - self.lower) / (self.upper - self.lower))
+
+    def from_unbounded(self, u):
+        """Parameter values and log|dx/du| for unbounded values ``u``."""
+        u = np.asarray(u, float)
+        span = self.upper - self.lower
+        x = self.lower + span * expit(u)
+        return x, np.log(span) + log_expit(u) + log_expit(-u)
+
+    def sample(self, rng, size):
+        return rng.uniform(self.lower, self.upper, size)
+
+    def describe(self):
+        return {"kind": "uniform", "lower": self.lower, "upper": self.upper}
+
+
+@dataclass(frozen=True)
+class LogUniform:
+    """Log-uniform on [lower, upper] (parameter units, both > 0)."""
+
+    lower: float
+    upper: float
+
+    def __post_init__(self):
+        _check_bounds(self.lower, self.upper, "log-uniform")
+        if self.lower <= 0:
+            raise ValueError(f"log-uniform prior needs lower > 0, got {self.lower}")
+
+    def log_pdf(self, x):
+        x = np.asarray(x, float)
+        inside = (x >= self.lower) & (x <= self.upper)
+        norm = np.log(np.log(self.upper / self.lower))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(inside, -np.log(np.where(inside, x, 1.0)) - norm, -np.inf)
+
+    def to_unbounded(self, x):
+        x = np.asarray(x, float)
+        return logit(np.log(x / self.lower) / np.log(self.upper / self.lower))
+
+    def from_unbounded(self, u):
+        u = np.asarray(u, float)
+        span = np.log(self.upper / self.lower)
+        log_x = np.log(self.lower) + span * expit(u)
+        return np.exp(log_x), log_x + np.log(span) + log_expit(u) + log_expit(-u)
+
+    def sample(self, rng, size):
+        return np.exp(rng.uniform(np.log(self.lower), np.log(self.upper), size))
+
+    def describe(self):
+        return {"kind": "log-uniform", "lower": self.lower, "upper": self.upper}
+
+
+@dataclass(frozen=True)
+class TruncatedNormal:
+    """Normal N(mean, sd²) truncated to [lower, upper] (parameter units)."""
+
+    mean: float
+    sd: float
+    lower: float
+    upper: float
+
+    def __post_init__(self):
+        _check_bounds(self.lower, self.upper, "truncated-normal")
+        if not (np.isfinite(self.mean) and np.isfinite(self.sd) and self.sd > 0):
+            raise ValueError(f"truncated-normal prior needs a finite mean and sd > 0, got {self}")
+
+    def _log_norm(self):
+        a, b = (self.lower - self.mean) / self.sd, (self.upper - self.mean) / self.sd
+        return np.log(self.sd) + np.log(ndtr(b) - ndtr(a)) + 0.5 * np.log(2 * np.pi)
+
+    def log_pdf(self, x):
+        x = np.asarray(x, float)
+        inside = (x >= self.lower) & (x <= self.upper)
+        y = (x - self.mean) / self.sd
+        with np.errstate(invalid="ignore"):
+            return np.where(inside, -0.5 * y * y - self._log_norm(), -np.inf)
+
+    to_unbounded = Uniform.to_unbounded
+    from_unbounded = Uniform.from_unbounded
+
+    def sample(self, rng, size):
+        a, b = ndtr((self.lower - self.mean) / self.sd), ndtr((self.upper - self.mean) / self.sd)
+        return self.mean + self.sd * ndtri(rng.uniform(a, b, size))
+
+    def describe(self):
+        return {
+            "kind": "truncated-normal",
+            "mean": self.mean,
+            "sd": self.sd,
+            "lower": self.lower,
+            "upper": self.upper,
+        }
+
+
+#: Prior kinds by name (the ``kind`` key of a priors file).
+PRIOR_KINDS = {
+    "uniform": Uniform,
+    "log-uniform": LogUniform,
+    "truncated-normal": TruncatedNormal,
+}
+
+
+def make_prior(spec) -> object:
+    """A prior from a mapping such as ``{"kind": "uniform", "lower": 0, "upper": 1}``."""
+    spec = dict(spec)
+    kind = spec.pop("kind", "uniform")
+    try:
+        factory = PRIOR_KINDS[kind]
+    except KeyError:
+        raise ValueError(f"unknown prior kind {kind!r}; known: {sorted(PRIOR_KINDS)}") from None
+    try:
+        return factory(**{key: float(value) for key, value in spec.items()})
+    except TypeError as error:
+        raise ValueError(f"{kind} prior: {error}") from None

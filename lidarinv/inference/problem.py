@@ -1,0 +1,169 @@
+"""Turn one observation into an inversion problem: window, priors, model and posterior."""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from forward.constants import SPEED_OF_LIGHT_M_PER_NS
+from forward.expected import ExpectedWaveformModel, ModelSettings
+from forward.instrument import instrument_preset
+from forward.pulse import MeasuredPulse
+from lidarinv.observe.analyse import analyse
+from lidarinv.observe.observation import Observation
+
+from .likelihood import WindowData
+from .parameters import DEFAULT_STRUCTURE_PRIORS, default_space, read_priors_file
+from .posterior import LogPosterior
+from .priors import LogUniform, TruncatedNormal, Uniform
+from .sampling import SamplerSettings
+from .stand_mapping import StandMapping, default_template
+
+
+@dataclass(frozen=True)
+class InversionSettings:
+    """Everything that controls one inversion (picklable; stored with the results).
+
+    Parameters
+    ----------
+    instrument : str
+        Instrument preset (``gedi``, ``lvis``, ``slicer``); the bin height is taken from
+        the observation.
+    use_measured_pulse : bool
+        Use the shot's transmit pulse when the file has one.
+    noise_method : str
+        Noise estimate for the priors: ``auto``, ``ends``, ``histogram`` or ``product``.
+    n_sigma : float
+        Signal threshold above the noise mean, in σ.
+    margin_above_m, margin_below_m : float (m)
+        Window beyond the detected signal; above, at least half the detected canopy
+        height too. Signal-free bins above the canopy constrain the top height, and the
+        top-height prior ends where the canopy would leave the window.
+    shot_factor : float (DN)
+        Shot-noise variance per unit signal, g.
+    discrepancy : float
+        Model-discrepancy sd as a fraction of the signal (random tree arrangement).
+    shape_pair : (str, str)
+        Crown shapes mixed by ``cone_fraction``.
+    priors : dict
+        Parameter overrides ``{name: {"prior": …, "fixed": …}}`` (see
+        :func:`.parameters.read_priors_file`).
+    sampler : SamplerSettings
+    model : forward.expected.ModelSettings
+    """
+
+    instrument: str = "gedi"
+    use_measured_pulse: bool = True
+    noise_method: str = "auto"
+    n_sigma: float = 4.0
+    margin_above_m: float = 10.0
+    margin_below_m: float = 5.0
+    shot_factor: float = 0.0
+    discrepancy: float = 0.0
+    shape_pair: tuple = ("cone", "ellipsoid")
+    priors: dict = field(default_factory=dict)
+    sampler: SamplerSettings = field(default_factory=SamplerSettings)
+    model: ModelSettings = field(default_factory=ModelSettings)
+
+    @classmethod
+    def from_priors_file(cls, path, **changes) -> "InversionSettings":
+        return cls(priors=read_priors_file(path), **changes)
+
+    def describe(self) -> dict:
+        out = {k: v for k, v in self.__dict__.items() if k not in ("priors", "sampler", "model")}
+        out["shape_pair"] = list(self.shape_pair)
+        out["sampler"] = {k: v for k, v in self.sampler.__dict__.items()}
+        out["sampler"]["moves"] = [list(m) for m in self.sampler.moves]
+        out["model"] = dict(self.model.__dict__)
+        out["priors"] = {
+            name: {
+                "fixed": change.get("fixed"),
+                "prior": change["prior"].describe() if "prior" in change else None,
+            }
+            for name, change in self.priors.items()
+        }
+        return out
+
+
+@dataclass
+class InversionProblem:
+    """A ready-to-sample posterior with what went into it."""
+
+    observation: Observation
+    analysis: object
+    window: WindowData
+    instrument: object
+    log_posterior: LogPosterior
+    settings: InversionSettings
+
+    @property
+    def space(self):
+        return self.log_posterior.space
+
+
+def shot_instrument(obs: Observation, settings: InversionSettings):
+    """The preset instrument with the observation's bin and, if any, its transmit pulse."""
+    bin_ns = 2.0 * obs.bin_size / SPEED_OF_LIGHT_M_PER_NS
+    instrument = instrument_preset(settings.instrument, bin_ns=bin_ns)
+    if settings.use_measured_pulse and obs.pulse is not None and np.isfinite(obs.pulse_ns):
+        ends = np.concatenate([obs.pulse[: max(2, obs.pulse.size // 10)], obs.pulse[-2:]])
+        pulse = MeasuredPulse(obs.pulse - np.median(ends), float(obs.pulse_ns))
+        instrument = instrument.with_overrides(pulse=pulse)
+    return instrument
+
+
+def _window_bounds(obs, analysis, settings, pulse_low, pulse_high):
+    bottom = min(analysis.signal_end, analysis.ground + pulse_low) - settings.margin_below_m
+    height = analysis.signal_start - analysis.ground
+    top = analysis.signal_start + max(settings.margin_above_m, 0.5 * height)
+    lo = int(np.searchsorted(obs.axis, bottom, side="left"))
+    hi = int(np.searchsorted(obs.axis, top, side="right"))
+    return max(lo, 0), min(hi, obs.n_bins)
+
+
+def build_problem(obs: Observation, settings: InversionSettings | None = None) -> InversionProblem:
+    """Analyse the shot, choose the window, set the shot's priors and build the posterior."""
+    settings = InversionSettings() if settings is None else settings
+    instrument = shot_instrument(obs, settings)
+    pulse_low, pulse_high = instrument.pulse.support(1e-3)
+    # smoothing over the pulse width finds faint canopy returns
+    one_sigma = instrument.pulse.support(0.1587)
+    sigma_bins = max(1.0, 0.5 * (one_sigma[1] - one_sigma[0]) / obs.bin_size)
+    analysis = analyse(
+        obs, noise=settings.noise_method, n_sigma=settings.n_sigma, smooth_bins=sigma_bins
+    )
+    if not analysis.ok:
+        raise ValueError(f"shot {obs.shot_id}: {analysis.status}: {analysis.reason}")
+    lo, hi = _window_bounds(obs, analysis, settings, pulse_low, pulse_high)
+    window = WindowData.from_observation(obs, lo, hi)
+    b, sigma = analysis.noise_mean, analysis.noise_sigma
+    energy = float(np.sum(np.clip(window.samples - b, 0.0, None)))
+    if not energy > 0:
+        raise ValueError(f"shot {obs.shot_id}: no energy above the noise mean in the window")
+    g = analysis.ground
+    g_sd = max(float(analysis.ground_uncertainty), 0.5 * obs.bin_size)
+    g_width = max(6.0 * g_sd, pulse_high - pulse_low)
+    nuisance = {
+        "ground_elevation": TruncatedNormal(g, g_sd, g - g_width, g + g_width),
+        "gain": LogUniform(energy / 20.0, energy * 20.0),
+        "baseline": Uniform(b - 5.0 * sigma, b + 5.0 * sigma),
+        "noise_sigma": LogUniform(sigma / 3.0, sigma * 3.0),
+    }
+    # the canopy must fit inside the window, so that empty bins above it constrain it
+    room = window.axis[-1] - g - pulse_high
+    default_top = DEFAULT_STRUCTURE_PRIORS["top_height"]
+    if room <= default_top.lower + 1.0:
+        raise ValueError(f"shot {obs.shot_id}: the window leaves no room above the ground")
+    nuisance["top_height"] = Uniform(default_top.lower, min(default_top.upper, room))
+    space = default_space(nuisance, settings.priors)
+    mapping = StandMapping(default_template(settings.shape_pair), settings.shape_pair)
+    model = ExpectedWaveformModel(
+        instrument,
+        window.axis,
+        mapping.template,
+        free=mapping.model_free,
+        settings=settings.model,
+    )
+    log_posterior = LogPosterior(
+        space, mapping, model, window, settings.shot_factor, settings.discrepancy
+    )
+    return InversionProblem(obs, analysis, window, instrument, log_posterior, settings)

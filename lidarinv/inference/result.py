@@ -1,0 +1,216 @@
+"""The posterior of one shot: summary, diagnostics, and an HDF5 round trip."""
+
+import json
+from dataclasses import dataclass, field
+
+import h5py
+import numpy as np
+
+import lidarinv
+
+#: Reported quantiles (%) of every quantity.
+QUANTILES = (5, 16, 50, 84, 95)
+_LABELS = ("p05", "p16", "median", "p84", "p95")
+
+
+@dataclass(eq=False)
+class InversionResult:
+    """Posterior samples and diagnostics of one shot.
+
+    Attributes
+    ----------
+    shot_id : int or str
+    parameter_names : tuple of str
+        Free parameters, the columns of ``samples``.
+    units : dict
+        Units of every parameter and derived quantity.
+    samples : array (m, ndim)
+        Posterior samples in physical units, after burn-in and thinning.
+    log_prob : array (m,)
+    derived : dict of name → array (m,)
+        Derived quantities per sample (RH of the model waveform, heights, volume, LAI...).
+    fixed : dict
+        Fixed parameters and their values.
+    diagnostics : dict
+        ``tau`` (per parameter, steps), ``acceptance``, ``n_steps``, ``n_walkers``,
+        ``burn``, ``thin``, ``ess`` (per parameter), ``converged``, ``map_log_prob``.
+    flags : list of str
+        Warnings (non-convergence, low acceptance, ...).
+    profile_heights : array (m)
+        Heights above ground of the crown-volume profile.
+    profile : array (5, n_heights)
+        Crown-volume profile quantiles (m³/m²/m), rows at :data:`QUANTILES`.
+    axis, observed, censored : arrays
+        The window of the observation (m, DN, bool).
+    predictive : array (5, n_bins)
+        Quantiles of the model mean b + a·W (DN), rows at :data:`QUANTILES`.
+    noise_floor : float (DN)
+    priors : list of dict
+    settings : dict
+    truth : dict
+        Known true values for simulated shots.
+    version : str
+    """
+
+    shot_id: object
+    parameter_names: tuple
+    units: dict
+    samples: np.ndarray
+    log_prob: np.ndarray
+    derived: dict
+    fixed: dict
+    diagnostics: dict
+    flags: list
+    profile_heights: np.ndarray
+    profile: np.ndarray
+    axis: np.ndarray
+    observed: np.ndarray
+    censored: np.ndarray
+    predictive: np.ndarray
+    noise_floor: float
+    priors: list
+    settings: dict
+    truth: dict = field(default_factory=dict)
+    version: str = lidarinv.__version__
+
+    @property
+    def converged(self) -> bool:
+        return bool(self.diagnostics.get("converged", False))
+
+    def column(self, name) -> np.ndarray:
+        """Samples of a free parameter or a derived quantity."""
+        if name in self.parameter_names:
+            return self.samples[:, self.parameter_names.index(name)]
+        if name in self.derived:
+            return self.derived[name]
+        raise KeyError(f"no quantity {name!r}; have {self.quantity_names}")
+
+    @property
+    def quantity_names(self) -> tuple:
+        return tuple(self.parameter_names) + tuple(self.derived)
+
+    def summary(self) -> dict:
+        """``{name: {"median", "p05", "p16", "p84", "p95", "units"}}`` of every quantity."""
+        out = {}
+        for name in self.quantity_names:
+            values = self.column(name)
+            values = values[np.isfinite(values)]
+            q = np.percentile(values, QUANTILES) if values.size else np.full(5, np.nan)
+            out[name] = {label: float(v) for label, v in zip(_LABELS, q)}
+            out[name]["units"] = self.units.get(name, "")
+        return out
+
+    def summary_table(self) -> str:
+        """A printable table: median and the 5/16/84/95 % quantiles."""
+        header = (
+            f"{'quantity':<20}{'units':>9}{'median':>11}{'5%':>11}{'16%':>11}{'84%':>11}{'95%':>11}"
+        )
+        lines = [f"shot {self.shot_id}", header, "-" * len(header)]
+        for name, row in self.summary().items():
+            numbers = "".join(f"{row[k]:>11.4g}" for k in ("median", "p05", "p16", "p84", "p95"))
+            lines.append(f"{name:<20}{row['units']:>9}{numbers}")
+        d = self.diagnostics
+        lines.append(
+            f"steps {d['n_steps']} × {d['n_walkers']} walkers, max τ {np.max(d['tau']):.0f}, "
+            f"acceptance {np.mean(d['acceptance']):.2f}, min ESS {np.min(d['ess']):.0f}, "
+            f"{'converged' if self.converged else 'NOT CONVERGED'}"
+        )
+        lines += [f"warning: {flag}" for flag in self.flags]
+        return "\n".join(lines)
+
+    def summary_row(self) -> dict:
+        """One flat row (str/float/int/bool) for batch tables."""
+        row = {
+            "shot_id": str(self.shot_id),
+            "converged": self.converged,
+            "n_steps": int(self.diagnostics["n_steps"]),
+            "max_tau": float(np.max(self.diagnostics["tau"])),
+            "flags": "; ".join(self.flags),
+        }
+        for name, stats in self.summary().items():
+            row.update({f"{name}_{label}": stats[label] for label in _LABELS})
+        return row
+
+    # --- HDF5 -------------------------------------------------------------------------
+    def write(self, group: h5py.Group):
+        """Write into an open HDF5 group."""
+        group.attrs["shot_id"] = str(self.shot_id)
+        group.attrs["shot_id_type"] = type(self.shot_id).__name__
+        group.attrs["lidarinv_version"] = self.version
+        group.attrs["parameter_names"] = json.dumps(list(self.parameter_names))
+        for key in ("units", "fixed", "settings", "truth", "priors", "flags"):
+            group.attrs[key] = json.dumps(_jsonable(getattr(self, key)))
+        group.attrs["diagnostics"] = json.dumps(_jsonable(self.diagnostics))
+        group.attrs["noise_floor"] = self.noise_floor
+        group.attrs["quantiles"] = np.array(QUANTILES)
+        group.create_dataset("samples", data=self.samples, compression="gzip")
+        group.create_dataset("log_prob", data=self.log_prob, compression="gzip")
+        derived = group.create_group("derived")
+        for name, values in self.derived.items():
+            derived.create_dataset(name, data=values, compression="gzip")
+        for name in ("profile_heights", "profile", "axis", "observed", "predictive"):
+            group.create_dataset(name, data=getattr(self, name))
+        group.create_dataset("censored", data=self.censored.astype(np.uint8))
+        summary = group.create_group("summary")
+        for name, stats in self.summary().items():
+            summary.attrs[name] = json.dumps(stats)
+
+    @classmethod
+    def read(cls, group: h5py.Group) -> "InversionResult":
+        attrs = group.attrs
+        shot_id = attrs["shot_id"]
+        if attrs.get("shot_id_type") == "int":
+            shot_id = int(shot_id)
+        diagnostics = json.loads(attrs["diagnostics"])
+        for key in ("tau", "acceptance", "ess"):
+            diagnostics[key] = np.asarray(diagnostics[key], float)
+        return cls(
+            shot_id=shot_id,
+            parameter_names=tuple(json.loads(attrs["parameter_names"])),
+            units=json.loads(attrs["units"]),
+            samples=group["samples"][()],
+            log_prob=group["log_prob"][()],
+            derived={name: group["derived"][name][()] for name in group["derived"]},
+            fixed=json.loads(attrs["fixed"]),
+            diagnostics=diagnostics,
+            flags=json.loads(attrs["flags"]),
+            profile_heights=group["profile_heights"][()],
+            profile=group["profile"][()],
+            axis=group["axis"][()],
+            observed=group["observed"][()],
+            censored=group["censored"][()].astype(bool),
+            predictive=group["predictive"][()],
+            noise_floor=float(attrs["noise_floor"]),
+            priors=json.loads(attrs["priors"]),
+            settings=json.loads(attrs["settings"]),
+            truth=json.loads(attrs["truth"]),
+            version=str(attrs["lidarinv_version"]),
+        )
+
+    def save(self, path, name="posterior", mode="a"):
+        """Save to an HDF5 file under group ``name`` (replaced if present)."""
+        with h5py.File(path, mode) as handle:
+            if name in handle:
+                del handle[name]
+            self.write(handle.create_group(name))
+
+    @classmethod
+    def load(cls, path, name="posterior") -> "InversionResult":
+        with h5py.File(path, "r") as handle:
+            if name not in handle:
+                raise ValueError(f"{path}: no posterior group {name!r} (have {list(handle)})")
+            return cls.read(handle[name])
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [_jsonable(v) for v in value.tolist()]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value

@@ -1,0 +1,261 @@
+"""MAP initialisation and the emcee run with an autocorrelation-time stopping rule."""
+
+from dataclasses import dataclass, field
+
+import emcee
+import numpy as np
+from scipy.optimize import minimize
+from tqdm.auto import tqdm
+
+#: Large finite objective for the optimiser where the log-density is −inf.
+_PENALTY = 1e12
+
+
+@dataclass(frozen=True)
+class SamplerSettings:
+    """Settings of the ensemble sampler.
+
+    Parameters
+    ----------
+    n_walkers : int
+        Walkers (raised to 2·ndim + 2 if smaller).
+    max_steps : int
+        Cap on steps; a run that hits it unconverged is flagged.
+    check_every : int
+        Steps between convergence checks.
+    tau_multiple : float
+        The chain must be at least this many integrated autocorrelation times long.
+    tau_tolerance : float
+        Largest relative change of τ between checks for τ to count as stable.
+    candidates : int
+        Prior draws scored to pick the optimiser's starts.
+    starts : int
+        Optimiser starts (the best candidates).
+    ball : float
+        Scale of the initial ball: walkers start from N(MAP, ball²·Σ) with Σ the Laplace
+        covariance at the MAP.
+    moves : tuple of (str, float)
+        Move mixture: names from :data:`MOVES` and their weights.
+    """
+
+    n_walkers: int = 32
+    max_steps: int = 20_000
+    check_every: int = 200
+    tau_multiple: float = 50.0
+    tau_tolerance: float = 0.05
+    candidates: int = 512
+    starts: int = 4
+    ball: float = 1.0
+    moves: tuple = (("de", 0.7), ("de-snooker", 0.1), ("stretch", 0.2))
+
+
+#: Move constructors by name.
+MOVES = {
+    "de": emcee.moves.DEMove,
+    "de-snooker": emcee.moves.DESnookerMove,
+    "stretch": emcee.moves.StretchMove,
+    "walk": emcee.moves.WalkMove,
+}
+
+
+@dataclass
+class MapEstimate:
+    """Best optimiser result in unbounded coordinates, with a Laplace covariance."""
+
+    u: np.ndarray
+    log_prob: float
+    converged: bool
+    evaluations: int
+    covariance: np.ndarray | None = None
+
+
+@dataclass
+class SamplerRun:
+    """Outcome of :func:`run_sampler` (chain arrays exclude nothing: burn-in is ``burn``)."""
+
+    chain: np.ndarray  # (steps, walkers, ndim), unbounded coordinates
+    log_prob: np.ndarray  # (steps, walkers)
+    blobs: np.ndarray  # (steps, walkers, n_blobs)
+    tau: np.ndarray
+    tau_history: list
+    acceptance: np.ndarray
+    converged: bool
+    burn: int
+    thin: int
+    flags: list = field(default_factory=list)
+
+
+def _batched_objective(log_prob, step=1e-5):
+    """−log p and its forward-difference gradient from one batched call of ndim + 1 rows."""
+    counter = {"n": 0}
+
+    def objective(u):
+        rows = np.vstack([u, u + step * np.eye(u.size)])
+        values = log_prob(rows)
+        counter["n"] += rows.shape[0]
+        f = np.where(np.isfinite(values), -values, _PENALTY)
+        grad = (f[1:] - f[0]) / step
+        return float(f[0]), np.where(np.isfinite(grad), grad, 0.0)
+
+    return objective, counter
+
+
+def find_map(log_prob, space, rng, settings: SamplerSettings) -> MapEstimate:
+    """Maximise ``log_prob`` (of unbounded coordinates) from the best of many prior draws."""
+    draws = space.to_unbounded(space.sample_prior(rng, settings.candidates))
+    draws = draws[np.all(np.isfinite(draws), axis=1)]
+    scores = log_prob(draws)
+    if not np.any(np.isfinite(scores)):
+        raise ValueError("no prior draw has a finite posterior: check the priors and the data")
+    order = np.argsort(-np.where(np.isfinite(scores), scores, -np.inf))
+    objective, counter = _batched_objective(log_prob)
+    best = MapEstimate(draws[order[0]], float(scores[order[0]]), False, draws.shape[0])
+    for start in draws[order[: settings.starts]]:
+        result = minimize(objective, start, jac=True, method="L-BFGS-B", options={"maxiter": 400})
+        value = -float(result.fun)
+        if value > best.log_prob and result.fun < _PENALTY:
+            best = MapEstimate(result.x, value, bool(result.success), 0)
+    best.evaluations = draws.shape[0] + counter["n"]
+    best.covariance = laplace_covariance(log_prob, best.u)
+    return best
+
+
+def laplace_covariance(log_prob, u, step=1e-3, max_variance=4.0) -> np.ndarray:
+    """Inverse of the negative Hessian of ``log_prob`` at ``u`` (one batched call).
+
+    Central differences; eigenvalues are clipped so that the result is positive definite
+    and no direction is wider than ``max_variance`` (unbounded units, where a prior spans
+    a few units).
+    """
+    n = u.size
+    eye = step * np.eye(n)
+    i, j = np.triu_indices(n, 1)
+    rows = [u[None, :], u + eye, u - eye]
+    rows += [u + eye[i] + eye[j], u + eye[i] - eye[j], u - eye[i] + eye[j], u - eye[i] - eye[j]]
+    values = log_prob(np.vstack(rows))
+    if not np.all(np.isfinite(values)):
+        return np.eye(n) * 1e-4
+    f0, plus, minus = values[0], values[1 : n + 1], values[n + 1 : 2 * n + 1]
+    pp, pm, mp, mm = np.split(values[2 * n + 1 :], 4)
+    hessian = np.empty((n, n))
+    hessian[np.diag_indices(n)] = (plus - 2 * f0 + minus) / step**2
+    hessian[i, j] = hessian[j, i] = (pp - pm - mp + mm) / (4 * step**2)
+    eigenvalues, vectors = np.linalg.eigh(-hessian)
+    variances = np.clip(1.0 / np.maximum(eigenvalues, 1e-12), 1e-10, max_variance)
+    return (vectors * variances) @ vectors.T
+
+
+def _initial_ball(log_prob, centre, covariance, n_walkers, rng):
+    """Walkers drawn from N(centre, covariance) with finite log-probability (the spread
+    halves for redrawn walkers until all are finite)."""
+    factor = np.linalg.cholesky(covariance + 1e-12 * np.eye(centre.size))
+
+    def draw(k, scale):
+        return centre + scale * rng.standard_normal((k, centre.size)) @ factor.T
+
+    walkers, scale = draw(n_walkers, 1.0), 1.0
+    for _ in range(50):
+        bad = ~np.isfinite(log_prob(walkers))
+        if not bad.any():
+            return walkers
+        scale /= 2
+        walkers[bad] = draw(int(bad.sum()), scale)
+    walkers[bad] = centre
+    return walkers
+
+
+def run_sampler(
+    log_posterior,
+    space,
+    rng,
+    settings: SamplerSettings | None = None,
+    backend=None,
+    progress=False,
+    start=None,
+) -> SamplerRun:
+    """Sample ``log_posterior`` (unbounded coordinates, emcee blob convention) to convergence.
+
+    Parameters
+    ----------
+    log_posterior : callable
+        Vectorised (n, ndim) → (n, 1 + n_blobs), e.g. :class:`.posterior.LogPosterior`.
+    space : ParameterSpace
+    rng : numpy.random.Generator
+    settings : SamplerSettings
+    backend : emcee.backends.Backend, optional
+        E.g. an ``HDFBackend``; a backend that already holds steps is resumed.
+    progress : bool
+        Show a progress bar.
+    start : array (ndim,), optional
+        Centre of the initial ball (unbounded); default the MAP estimate.
+    """
+    s = SamplerSettings() if settings is None else settings
+    ndim = space.ndim
+    n_walkers = max(s.n_walkers, 2 * ndim + 2)
+    if n_walkers % 2:
+        n_walkers += 1
+    moves = [(MOVES[name](), weight) for name, weight in s.moves]
+    resume = backend is not None and backend.initialized and backend.iteration > 0
+    if resume and backend.shape != (n_walkers, ndim):
+        raise ValueError(
+            f"the backend holds a chain of shape {backend.shape}, not {(n_walkers, ndim)}"
+        )
+    sampler = emcee.EnsembleSampler(
+        n_walkers, ndim, log_posterior, moves=moves, backend=backend, vectorize=True
+    )
+    log_prob = lambda u: log_posterior(u)[:, 0]  # noqa: E731
+    flags = []
+    if resume:
+        state = backend.get_last_sample()
+    else:
+        sampler.random_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
+        if start is None:
+            estimate = find_map(log_prob, space, rng, s)
+            centre, covariance = estimate.u, estimate.covariance
+            if not estimate.converged:
+                flags.append("MAP optimiser did not report convergence")
+        else:
+            centre = np.asarray(start, float)
+            covariance = laplace_covariance(log_prob, centre)
+        state = _initial_ball(log_prob, centre, s.ball**2 * covariance, n_walkers, rng)
+    history, tau, converged = [], np.full(ndim, np.inf), False
+    bar = tqdm(total=s.max_steps, disable=not progress, desc="sampling", unit="step")
+    bar.update(sampler.iteration)
+    while sampler.iteration < s.max_steps:
+        steps = min(s.check_every, s.max_steps - sampler.iteration)
+        state = sampler.run_mcmc(state, steps, progress=False)
+        bar.update(steps)
+        discard = sampler.iteration // 3  # τ of the chain after the start transient
+        new_tau = sampler.get_autocorr_time(tol=0, quiet=True, discard=discard)
+        history.append((sampler.iteration, new_tau.copy()))
+        stable = np.all(np.abs(new_tau - tau) < s.tau_tolerance * new_tau)
+        long_enough = np.all(sampler.iteration - discard > s.tau_multiple * new_tau)
+        tau = new_tau
+        bar.set_postfix(tau=f"{np.max(tau):.0f}")
+        if long_enough and stable and np.all(np.isfinite(tau)):
+            converged = True
+            break
+    bar.close()
+    if not converged:
+        flags.append(
+            f"not converged: {sampler.iteration} steps < {s.tau_multiple:g} τ "
+            f"(max τ = {np.max(tau):.0f}) or τ not stable"
+        )
+    acceptance = sampler.acceptance_fraction
+    if np.any(acceptance < 0.05):
+        flags.append(f"low acceptance in {int(np.sum(acceptance < 0.05))} walker(s)")
+    tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else sampler.iteration / 10
+    burn = sampler.iteration // 3
+    thin = max(1, int(tau_max / 2))
+    return SamplerRun(
+        chain=sampler.get_chain(),
+        log_prob=sampler.get_log_prob(),
+        blobs=sampler.get_blobs(),
+        tau=tau,
+        tau_history=history,
+        acceptance=acceptance,
+        converged=converged,
+        burn=burn,
+        thin=thin,
+        flags=flags,
+    )

@@ -1,0 +1,189 @@
+"""From inversion parameters to the expected-waveform model, and the derived quantities.
+
+Cover c and crown plant area index L fix stem density and FAVD through the Poisson-stand
+identities (for a height density f and crown radius R(h) = r0 + r1·h):
+
+    c = 1 − exp(−λ·E[π R²])             →  λ = −ln(1 − c) / E[π R²]   (stems/m²)
+    L = λ·FAVD·Σ_s m_s κ_s v_s E[π R² ℓ h]  →  FAVD = L / (λ·Σ …)     (m²/m³)
+
+with m_s the shape fractions, κ_s the per-shape FAVD ratios, v_s the volume fractions of
+the shapes and ℓ the crown length ratio. The top height is mean + 2·sd of the height
+family: for the default truncated normal (truncated at ±2 sd) it is the tallest tree.
+Expectations over h use Gauss–Legendre quadrature on the bulk of each row's distribution.
+"""
+
+import numpy as np
+
+from forward.crowns import CROWN_SHAPES
+from forward.expected import MIX_FIELDS
+from forward.stand_params import HEIGHT_DISTRIBUTIONS, StandParams
+
+#: top_height = height_mean + TOP_SDS·height_sd.
+TOP_SDS = 2.0
+
+#: Expected-model vector fields the mapping fills, in order.
+MODEL_FIELDS = (
+    "density",
+    "height_mean",
+    "height_sd",
+    "crown_length_ratio",
+    "crown_radius_intercept",
+    "crown_radius_slope",
+    "favd",
+    "understory_height",
+    "understory_lai",
+    "canopy_reflectance",
+    "ground_reflectance",
+    "ground_elevation",
+)
+
+#: Scalar derived quantities reported per sample (units).
+DERIVED = {
+    "density": "stems/ha",
+    "favd": "m2/m3",
+    "mean_height": "m",
+    "dominant_height": "m",
+    "crown_volume": "m3/ha",
+    "lai": "m2/m2",
+}
+
+#: Stems per hectare whose mean height is the dominant height.
+DOMINANT_PER_HA = 100.0
+
+
+def default_template(shape_pair=("cone", "ellipsoid")) -> StandParams:
+    """Template stand for the default parameterisation (truncated-normal heights)."""
+    return StandParams(
+        density=500.0,
+        height_mean=15.0,
+        height_sd=3.0,
+        height_family="truncnorm",
+        height_truncation=TOP_SDS,
+        shape_mix={shape_pair[0]: 0.5, shape_pair[1]: 0.5},
+    )
+
+
+class StandMapping:
+    """Vectorised map from inversion parameters to expected-model vectors.
+
+    Parameters
+    ----------
+    template : StandParams
+        Height family, truncation, FAVD ratios and crown-radius intercept (single cohort).
+    shape_pair : (str, str)
+        Shapes mixed by ``cone_fraction``: the first gets ``cone_fraction``, the second
+        the rest.
+    nodes : int
+        Gauss–Legendre nodes of the height expectations.
+    """
+
+    def __init__(self, template: StandParams, shape_pair=("cone", "ellipsoid"), nodes=48):
+        if template.cohort2_fraction > 0:
+            raise ValueError("the default parameterisation models a single cohort")
+        unknown = [s for s in shape_pair if s not in CROWN_SHAPES]
+        if unknown or len(shape_pair) != 2 or shape_pair[0] == shape_pair[1]:
+            raise ValueError(f"shape_pair needs two different shapes of {list(CROWN_SHAPES)}")
+        self.template = template
+        self.shape_pair = tuple(shape_pair)
+        self.family = HEIGHT_DISTRIBUTIONS[template.height_family]
+        self.truncation = template.height_truncation
+        x, w = np.polynomial.legendre.leggauss(nodes)
+        self._x, self._w = 0.5 * (x + 1.0), 0.5 * w
+        ratio = dict(zip(CROWN_SHAPES, template.favd_ratio))
+        self._volume = np.array([CROWN_SHAPES[s].volume_fraction for s in shape_pair])
+        self._leaf = self._volume * np.array([ratio[s] for s in shape_pair])
+        self.model_free = MODEL_FIELDS + tuple(f"mix_{s}" for s in shape_pair)
+        assert all(f in MIX_FIELDS for f in self.model_free[len(MODEL_FIELDS) :])
+
+    def _quadrature(self, mean, sd, lo=None):
+        """Heights (n, q) and weights (n, q) summing to the probability mass on [lo, top]."""
+        t = self.truncation
+        low = self.family.ppf(1e-9, mean, sd, t) if lo is None else lo
+        high = self.family.isf(1e-9, mean, sd, t)
+        low = np.minimum(low, high)
+        h = low[:, None] + (high - low)[:, None] * self._x
+        weight = (high - low)[:, None] * self._w * self.family.pdf(h, mean[:, None], sd[:, None], t)
+        return h, weight
+
+    def _moments(self, v):
+        mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
+        h, weight = self._quadrature(mean, sd)
+        total = weight.sum(axis=1)
+        p = weight / np.where(total > 0, total, 1.0)[:, None]
+        radius = self.template.crown_radius_intercept + v["crown_radius_slope"][:, None] * h
+        area = np.pi * radius**2
+        return mean, sd, h, p, area
+
+    def valid(self, v) -> np.ndarray:
+        """Rows whose parameters describe a stand (before any model evaluation)."""
+        mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
+        ok = (mean > 0) & (sd > 0) & (v["cover"] > 0) & (v["cover"] < 1) & (v["pai"] > 0)
+        ok &= (v["crown_length_ratio"] > 0) & (v["crown_length_ratio"] <= 1)
+        ok &= (v["cone_fraction"] >= 0) & (v["cone_fraction"] <= 1)
+        ok &= (v["understory_height"] > 0) & (v["understory_lai"] >= 0)
+        ok &= (v["rho_ratio"] >= 0) & (v["crown_radius_slope"] > 0)
+        safe_mean, safe_sd = np.where(ok, mean, 1.0), np.where(ok, sd, 0.1)
+        return ok & self.family.valid(safe_mean, safe_sd, self.truncation)
+
+    def model_vectors(self, v):
+        """Expected-model vectors (n, len(model_free)) and scalar derived quantities.
+
+        ``v`` maps every parameter name to an (n,) array; rows must be :meth:`valid`.
+        """
+        mean, sd, h, p, area = self._moments(v)
+        ratio = v["crown_length_ratio"]
+        mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
+        per_stem_area = np.sum(p * area, axis=1)
+        crown_volume = np.sum(p * area * h, axis=1) * ratio  # π R² ℓ h, before shape
+        lam = -np.log1p(-v["cover"]) / per_stem_area
+        volume = lam * crown_volume * (mix @ self._volume)
+        favd = v["pai"] / (lam * crown_volume * (mix @ self._leaf))
+        vectors = np.column_stack(
+            [
+                lam * 1e4,
+                mean,
+                sd,
+                ratio,
+                np.full_like(mean, self.template.crown_radius_intercept),
+                v["crown_radius_slope"],
+                favd,
+                v["understory_height"],
+                v["understory_lai"],
+                v["rho_ratio"],
+                np.ones_like(mean),
+                v["ground_elevation"],
+                mix,
+            ]
+        )
+        derived = {
+            "density": lam * 1e4,
+            "favd": favd,
+            "mean_height": np.sum(p * h, axis=1),
+            "dominant_height": self._dominant_height(mean, sd, lam * 1e4),
+            "crown_volume": volume * 1e4,
+            "lai": v["pai"] + v["understory_lai"],
+        }
+        return vectors, derived
+
+    def _dominant_height(self, mean, sd, density):
+        """Mean height of the DOMINANT_PER_HA tallest stems per hectare (all if fewer)."""
+        tail = np.clip(DOMINANT_PER_HA / density, 1e-9, 1.0)
+        cut = self.family.isf(tail, mean, sd, self.truncation)
+        low = np.where(tail < 1.0, cut, self.family.ppf(1e-9, mean, sd, self.truncation))
+        h, weight = self._quadrature(mean, sd, lo=low)
+        return np.sum(weight * h, axis=1) / np.maximum(weight.sum(axis=1), 1e-300)
+
+    def crown_volume_profile(self, v, z) -> np.ndarray:
+        """Crown volume per unit ground area and height (m³/m²/m) at heights z (m), (n, nz)."""
+        z = np.asarray(z, float)
+        mean, _sd, h, p, area = self._moments(v)
+        ratio = v["crown_length_ratio"][:, None, None]
+        mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
+        lam = -np.log1p(-v["cover"]) / np.sum(p * area, axis=1)
+        length = ratio * h[:, None, :]
+        s = (z[None, :, None] - (h[:, None, :] - length)) / length
+        out = np.zeros((mean.size, z.size))
+        for k, shape in enumerate(self.shape_pair):
+            section = CROWN_SHAPES[shape].section(s)
+            out += mix[:, k, None] * np.sum((p * area)[:, None, :] * section, axis=2)
+        return lam[:, None] * out

@@ -1,0 +1,97 @@
+"""Priors, unbounded transforms and the priors file."""
+
+import itertools
+
+import numpy as np
+import pytest
+from scipy import integrate
+
+from lidarinv.inference.parameters import default_space, read_priors_file
+from lidarinv.inference.priors import LogUniform, TruncatedNormal, Uniform, make_prior
+
+PRIORS = [Uniform(-2.0, 3.0), LogUniform(0.01, 20.0), TruncatedNormal(1.5, 0.5, 0.3, 4.0)]
+
+
+@pytest.mark.parametrize("prior", PRIORS, ids=lambda p: type(p).__name__)
+def test_prior_density_is_normalised_and_zero_outside(prior):
+    total, _ = integrate.quad(
+        lambda x: np.exp(prior.log_pdf(x)), prior.lower, prior.upper, points=[1.0], limit=200
+    )
+    assert total == pytest.approx(1.0, rel=1e-6)
+    assert prior.log_pdf(prior.lower - 1e-9) == -np.inf
+    assert prior.log_pdf(prior.upper + 1e-9) == -np.inf
+    assert prior.log_pdf(np.nan) == -np.inf
+
+
+@pytest.mark.parametrize("prior", PRIORS, ids=lambda p: type(p).__name__)
+def test_transform_round_trip_and_jacobian(prior):
+    u = np.linspace(-6, 6, 25)
+    x, log_jac = prior.from_unbounded(u)
+    assert np.all((x > prior.lower) & (x < prior.upper))
+    np.testing.assert_allclose(prior.to_unbounded(x), u, atol=1e-8)
+    h = 1e-6
+    numeric = (prior.from_unbounded(u + h)[0] - prior.from_unbounded(u - h)[0]) / (2 * h)
+    np.testing.assert_allclose(np.exp(log_jac), numeric, rtol=1e-5)
+    # far out in u the parameter stays at the bound and the log-density stays finite
+    x_far, log_jac_far = prior.from_unbounded(np.array([-800.0, 800.0]))
+    assert np.all(np.isfinite(log_jac_far)) and np.all(np.isfinite(x_far))
+
+
+@pytest.mark.parametrize("prior", PRIORS, ids=lambda p: type(p).__name__)
+def test_prior_samples_follow_the_density(prior, rng):
+    draws = prior.sample(rng, 20000)
+    assert np.all((draws >= prior.lower) & (draws <= prior.upper))
+    edges = np.linspace(prior.lower, prior.upper, 11)
+    counts, _ = np.histogram(draws, edges)
+    expected = [
+        integrate.quad(lambda x: np.exp(prior.log_pdf(x)), a, b)[0] * draws.size
+        for a, b in itertools.pairwise(edges)
+    ]
+    assert np.all(np.abs(counts - expected) < 5 * np.sqrt(np.asarray(expected)) + 5)
+
+
+def test_bad_prior_specifications_are_named():
+    with pytest.raises(ValueError, match="lower < upper"):
+        Uniform(2.0, 1.0)
+    with pytest.raises(ValueError, match="lower > 0"):
+        LogUniform(0.0, 1.0)
+    with pytest.raises(ValueError, match="unknown prior kind"):
+        make_prior({"kind": "cauchy", "lower": 0, "upper": 1})
+
+
+def _nuisance():
+    return {
+        "ground_elevation": TruncatedNormal(0.0, 0.1, -1.0, 1.0),
+        "gain": LogUniform(1.0, 100.0),
+        "baseline": Uniform(-1.0, 1.0),
+        "noise_sigma": LogUniform(0.1, 10.0),
+    }
+
+
+def test_priors_file_overrides_fix_and_free(tmp_path):
+    path = tmp_path / "priors.toml"
+    path.write_text(
+        '[top_height]\nkind = "uniform"\nlower = 5.0\nupper = 40.0\n\n'
+        "[understory_lai]\nfixed = 0.0\n\n[crown_radius_slope]\nfree = true\n"
+    )
+    space = default_space(_nuisance(), read_priors_file(path))
+    assert space.by_name["top_height"].prior == Uniform(5.0, 40.0)
+    assert "understory_lai" not in space.names
+    assert "crown_radius_slope" in space.names
+    values = space.values(space.sample_prior(np.random.default_rng(1), 4))
+    np.testing.assert_array_equal(values["understory_lai"], 0.0)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("[canopy_colour]\nfixed = 1\n", "unknown parameter"),
+        ("[cover]\nkind = 'uniform'\nlower = 1\n", "missing"),
+        ("[cover\n", "not valid TOML"),
+    ],
+)
+def test_priors_file_errors_name_the_problem(tmp_path, text, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        read_priors_file(path)
