@@ -123,3 +123,13 @@ def test_write_rejects_bad_sets(tmp_path):
     b = Observation(np.ones(5), np.arange(5.0), axis_kind="elevation")
     with pytest.raises(ValueError, match="mix axis kinds"):
         write_observations(tmp_path / "x.h5", [a, b])
+
+
+def test_64_bit_shot_numbers_survive_the_round_trip(tmp_path):
+    from lidarinv.io.waveforms import read_observations, write_observations
+    from lidarinv.observe.observation import Observation
+
+    shot = 123456789012345678  # beyond float64's exact integers
+    path = tmp_path / "shots.h5"
+    write_observations(path, [Observation(np.arange(5.0), np.arange(5.0), shot_id=shot)])
+    assert read_observations(path)[0].shot_id == shot

@@ -46,6 +46,8 @@ def _column(values):
     values = [scalar(v) for v in values]
     if all(isinstance(v, str) for v in values):
         return np.asarray(values, dtype=object), h5py.string_dtype()
+    if all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in values):
+        return np.asarray(values, dtype=np.int64), None  # 64-bit shot numbers stay exact
     try:
         return np.asarray(values, dtype=float), None
     except (TypeError, ValueError):

@@ -1,0 +1,90 @@
+"""Wall time per footprint to convergence (issue: Bayesian inversion).
+
+GEDI-like synthetic shots (explicit random stands, see :mod:`lidarinv.inference.synthetic`)
+are inverted with the default settings (13 free parameters) on one core, BLAS threads
+pinned to 1. Reported per shot: wall time, steps, walkers, max τ, converged, and the
+log-posterior evaluations per second. Target: ≤ 10 s per footprint with ~10 free
+parameters.
+
+    python studies/inversion_speed.py [--n 3] [--max-steps 20000]
+
+Writes studies/output/inversion_speed/summary.json.
+"""
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from lidarinv.inference import InversionSettings, build_problem, invert_shot  # noqa: E402
+from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
+
+TARGET_SECONDS = 10.0
+
+
+def evaluation_cost(problem, rng, batch=32, repeats=20):
+    """Seconds per log-posterior row, batched like the sampler (best of repeats)."""
+    u = problem.space.to_unbounded(problem.space.sample_prior(rng, batch))
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        problem.log_posterior(u)
+        best = min(best, time.perf_counter() - start)
+    return best / batch
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=3)
+    parser.add_argument("--max-steps", type=int, default=20000)
+    parser.add_argument("--seed", type=int, default=5)
+    args = parser.parse_args()
+    settings = InversionSettings()
+    settings = replace(settings, sampler=replace(settings.sampler, max_steps=args.max_steps))
+    rng = np.random.default_rng(args.seed)
+    rows = []
+    for i in range(args.n):
+        obs = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng, shot_id=i)
+        problem = build_problem(obs, settings)
+        per_row = evaluation_cost(problem, rng)
+        start = time.perf_counter()
+        result = invert_shot(obs, settings, rng=rng)
+        seconds = time.perf_counter() - start
+        d = result.diagnostics
+        rows.append(
+            {
+                "shot": i,
+                "seconds": seconds,
+                "steps": d["n_steps"],
+                "walkers": d["n_walkers"],
+                "max_tau": float(np.max(d["tau"])),
+                "converged": result.converged,
+                "free_parameters": len(result.parameter_names),
+                "window_bins": int(result.axis.size),
+                "microseconds_per_evaluation": per_row * 1e6,
+            }
+        )
+        print(rows[-1], flush=True)
+    summary = {
+        "target_seconds": TARGET_SECONDS,
+        "median_seconds": float(np.median([r["seconds"] for r in rows])),
+        "converged_fraction": float(np.mean([r["converged"] for r in rows])),
+        "load_average": os.getloadavg(),
+        "shots": rows,
+    }
+    folder = Path(__file__).parent / "output" / "inversion_speed"
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "summary.json").write_text(json.dumps(summary, indent=1))
+    print(json.dumps({k: v for k, v in summary.items() if k != "shots"}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,58 @@
+"""Property tests of the shot log-posterior: no NaN, −inf outside the support."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lidarinv.inference import build_problem
+from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
+
+
+@pytest.fixture(scope="module")
+def problem():
+    obs = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], np.random.default_rng(4), explicit=False)
+    return build_problem(obs)
+
+
+anything = st.floats(allow_nan=True, allow_infinity=True, width=64)
+
+
+@settings(max_examples=60, deadline=None)
+@given(fractions=st.lists(st.floats(0.0, 1.0), min_size=13, max_size=13))
+def test_inside_the_prior_box_log_posterior_is_finite_or_invalid(problem, fractions):
+    space = problem.space
+    x = np.array(
+        [p.prior.lower + f * (p.prior.upper - p.prior.lower) for p, f in zip(space.free, fractions)]
+    )
+    terms = problem.log_posterior.evaluate(x[None, :])
+    value = terms.log_posterior[0]
+    assert not np.isnan(value)
+    values = space.values(x[None, :])
+    if np.isfinite(space.log_prior(x[None, :])[0]) and problem.log_posterior.mapping.valid(values)[0]:
+        assert np.isfinite(value)
+        assert np.all(np.isfinite(terms.blobs[0]))
+
+
+@settings(max_examples=60, deadline=None)
+@given(row=st.lists(anything, min_size=13, max_size=13))
+def test_any_input_gives_a_number_or_minus_inf(problem, row):
+    value = problem.log_posterior.log_prob(np.array([row]))[0]
+    assert not np.isnan(value) and value != np.inf
+
+
+@settings(max_examples=40, deadline=None)
+@given(row=st.lists(st.floats(-800, 800), min_size=13, max_size=13))
+def test_unbounded_coordinates_never_give_nan(problem, row):
+    out = problem.log_posterior(np.array([row]))
+    assert not np.isnan(out[0, 0]) and out[0, 0] != np.inf
+
+
+@settings(max_examples=30, deadline=None)
+@given(index=st.integers(0, 12), beyond=st.floats(1e-9, 1e6), low=st.booleans())
+def test_beyond_any_prior_bound_is_minus_inf(problem, index, beyond, low):
+    space = problem.space
+    x = np.array([[0.5 * (p.prior.lower + p.prior.upper) for p in space.free]])
+    p = space.free[index].prior
+    x[0, index] = p.lower - beyond if low else p.upper + beyond
+    assert problem.log_posterior.log_prob(x)[0] == -np.inf
