@@ -29,7 +29,10 @@ def test_inside_the_prior_box_log_posterior_is_finite_or_invalid(problem, fracti
     value = terms.log_posterior[0]
     assert not np.isnan(value)
     values = space.values(x[None, :])
-    if np.isfinite(space.log_prior(x[None, :])[0]) and problem.log_posterior.mapping.valid(values)[0]:
+    if (
+        np.isfinite(space.log_prior(x[None, :])[0])
+        and problem.log_posterior.mapping.valid(values)[0]
+    ):
         assert np.isfinite(value)
         assert np.all(np.isfinite(terms.blobs[0]))
 
