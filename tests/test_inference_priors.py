@@ -7,9 +7,20 @@ import pytest
 from scipy import integrate
 
 from lidarinv.inference.parameters import default_space, read_priors_file
-from lidarinv.inference.priors import LogUniform, TruncatedNormal, Uniform, make_prior
+from lidarinv.inference.priors import (
+    LogUniform,
+    TruncatedLogNormal,
+    TruncatedNormal,
+    Uniform,
+    make_prior,
+)
 
-PRIORS = [Uniform(-2.0, 3.0), LogUniform(0.01, 20.0), TruncatedNormal(1.5, 0.5, 0.3, 4.0)]
+PRIORS = [
+    Uniform(-2.0, 3.0),
+    LogUniform(0.01, 20.0),
+    TruncatedNormal(1.5, 0.5, 0.3, 4.0),
+    TruncatedLogNormal(1.5, 0.3, 0.3, 5.0),
+]
 
 
 @pytest.mark.parametrize("prior", PRIORS, ids=lambda p: type(p).__name__)

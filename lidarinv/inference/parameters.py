@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .priors import LogUniform, TruncatedNormal, Uniform, make_prior
+from .priors import LogUniform, TruncatedLogNormal, Uniform, make_prior
 
 
 @dataclass(frozen=True)
@@ -79,8 +79,9 @@ DEFAULT_STRUCTURE_PRIORS = {
 #: Held fixed unless a priors file frees them.
 DEFAULT_FIXED = {"crown_radius_slope": 0.1}
 
-#: Default prior of ρv/ρg: GEDI L2B uses 1.5.
-DEFAULT_RHO_RATIO_PRIOR = TruncatedNormal(1.5, 0.5, 0.3, 4.0)
+#: Default prior of ρv/ρg: median 1.5 (the GEDI L2B value), a factor e^0.3 ≈ 1.35 either
+#: side at one sd; on the log scale because the data fix the product gain·ρv.
+DEFAULT_RHO_RATIO_PRIOR = TruncatedLogNormal(1.5, 0.3, 0.3, 5.0)
 
 
 class ParameterSpace:

@@ -111,6 +111,15 @@ def shot_instrument(obs: Observation, settings: InversionSettings):
     return instrument
 
 
+def pulse_quantiles(pulse, tail):
+    """Height offsets (m) below and above which a fraction ``tail`` of the pulse lies
+    (a measured pulse's ``support`` is its whole sampled span)."""
+    low, high = pulse.support(tail)
+    grid = np.linspace(low, high, 4001)
+    cdf = pulse.cdf(grid)
+    return float(np.interp(tail, cdf, grid)), float(np.interp(1.0 - tail, cdf, grid))
+
+
 def _window_bounds(obs, analysis, settings, pulse_low, pulse_high):
     bottom = min(analysis.signal_end, analysis.ground + pulse_low) - settings.margin_below_m
     height = analysis.signal_start - analysis.ground
@@ -124,9 +133,9 @@ def build_problem(obs: Observation, settings: InversionSettings | None = None) -
     """Analyse the shot, choose the window, set the shot's priors and build the posterior."""
     settings = InversionSettings() if settings is None else settings
     instrument = shot_instrument(obs, settings)
-    pulse_low, pulse_high = instrument.pulse.support(1e-3)
+    pulse_low, pulse_high = pulse_quantiles(instrument.pulse, 1e-3)
     # smoothing over the pulse width finds faint canopy returns
-    one_sigma = instrument.pulse.support(0.1587)
+    one_sigma = pulse_quantiles(instrument.pulse, 0.1587)
     sigma_bins = max(1.0, 0.5 * (one_sigma[1] - one_sigma[0]) / obs.bin_size)
     analysis = analyse(
         obs, noise=settings.noise_method, n_sigma=settings.n_sigma, smooth_bins=sigma_bins
