@@ -9,35 +9,79 @@ This package never imports ``lidarinv``.
 from .allometry import SPECIES_ALLOMETRY, Allometry
 from .constants import SPEED_OF_LIGHT_M_PER_NS, height_to_ns, ns_to_height
 from .crowns import CROWN_SHAPES, SHAPE_NAMES
+from .derived import (
+    canopy_cover,
+    crown_volume_per_ha,
+    crown_volume_profile,
+    dominant_height,
+    expected_max_height,
+    leaf_area_index,
+    mean_height,
+)
 from .engine import AccuracySettings, PreparedStand, WaveformSimulator
+from .expected import (
+    CONVERGED,
+    DEFAULT_FREE,
+    MIX_FIELDS,
+    VECTOR_FIELDS,
+    ExpectedWaveformModel,
+    ExpectedWaveforms,
+    ModelSettings,
+)
 from .instrument import INSTRUMENT_PRESETS, Instrument, instrument_preset
+from .paper_stands import SUCCESSIONAL, jack_pine_params, successional_params
 from .pulse import PULSE_TYPES, GaussianPulse, MeasuredPulse
+from .realise import POINT_PATTERNS, realise, scene_extras
 from .scene import Ground, UniformUnderstory
 from .stand import Stand
 from .stand_io import load_stand, save_stand
+from .stand_params import HEIGHT_DISTRIBUTIONS, StandParams, height_distribution
 from .waveform import Waveform
 
 __all__ = [
+    "CONVERGED",
     "CROWN_SHAPES",
+    "DEFAULT_FREE",
+    "HEIGHT_DISTRIBUTIONS",
     "INSTRUMENT_PRESETS",
+    "MIX_FIELDS",
+    "POINT_PATTERNS",
     "PULSE_TYPES",
     "SHAPE_NAMES",
     "SPECIES_ALLOMETRY",
     "SPEED_OF_LIGHT_M_PER_NS",
+    "SUCCESSIONAL",
+    "VECTOR_FIELDS",
     "AccuracySettings",
     "Allometry",
+    "ExpectedWaveformModel",
+    "ExpectedWaveforms",
     "GaussianPulse",
     "Ground",
     "Instrument",
     "MeasuredPulse",
+    "ModelSettings",
     "PreparedStand",
     "Stand",
+    "StandParams",
     "UniformUnderstory",
     "Waveform",
     "WaveformSimulator",
+    "canopy_cover",
+    "crown_volume_per_ha",
+    "crown_volume_profile",
+    "dominant_height",
+    "expected_max_height",
+    "height_distribution",
     "height_to_ns",
     "instrument_preset",
+    "jack_pine_params",
+    "leaf_area_index",
     "load_stand",
+    "mean_height",
     "ns_to_height",
+    "realise",
     "save_stand",
+    "scene_extras",
+    "successional_params",
 ]

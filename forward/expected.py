@@ -29,68 +29,48 @@ in ρ for cones and cylinders, in sqrt(1 − ρ²) for spheroids, see
         = 1 − exp(−κu (b_j h − z))          for z/b_j ≤ h < z/a_j
         = 1 − exp(−κu (b_j − a_j) h)         for h ≥ z/a_j   (whole chord above z).
 
-So the height integral is exact given three tail integrals on a height grid,
-Q0(t) = ∫_t^∞ g, Q1_j(t) = ∫_t^∞ g e^{−κu(b_j−a_j)h}, Q2_j(t) = ∫_t^∞ g e^{−κu b_j h}:
+So the height integral is exact given tail integrals on a height grid. With the
+discounted tail S(t; r) = ∫_t^∞ g(h) e^{−r(h−t)} dh, r_b = κu b_j and r_d = κu(b_j − a_j),
 
-    ∫ g φ_j dh = Q0(z/b_j) − Q1_j(z/a_j) − e^{κuz} [Q2_j(z/b_j) − Q2_j(z/a_j)].
+    ∫ g φ_j dh = A_j(z/b_j) + B_j(z/a_j),
+    A_j(t) = Q0(t) − S(t; r_b),   B_j(t) = e^{−r_d t} [S(t; r_b) − S(t; r_d)],
 
-A call builds these tables per parameter vector and cohort (``height_nodes`` points over
-the cohort's height distribution, fourth-order rules of
-:class:`forward.expected_tables.TailTable`), reads them at z/a_j and z/b_j on
-``depth_nodes`` heights from 0 to the tallest tree, interpolates E[P] to every fine-layer
-edge (Catmull–Rom; or reads the tables at every edge when ``depth_nodes`` is None), and
-convolves the layer returns ρv·ΔE[P] with the same layer kernel as the explicit engine
-(:func:`forward.pulse.layer_kernel`) as one matrix product. The ground elevation g moves
-the edges (z = e − g): no resampling of samples. The uniform
+two smooth functions of one height each. A call tabulates A_j, B_j and their exact slopes
+per parameter vector and cohort on ``height_nodes`` points spanning the cohort's height
+distribution (fourth-order cell rule, :mod:`forward.expected_tables`), continues them
+exactly below the grid and reads them by cubic Hermite interpolation: compiled
+(:mod:`forward.expected_numba`) or with numpy (:mod:`forward.expected_depth`), the same
+numbers to rounding.
+
+Waveform. With ``depth_nodes`` set, E[P] is evaluated on a grid of whole fine layers
+(about ``depth_nodes`` points up to the template's tallest tree) starting on the bin edge
+at or below each row's ground g; Catmull–Rom interpolation to the layer edges, the layer
+returns ρv·ΔE[P] and the layer kernel of the explicit engine
+(:func:`forward.pulse.layer_kernel`) are then one constant matrix, and each row is
+shifted by whole bins. With ``depth_nodes=None``, or an understory, E[P] is evaluated at
+every fine-layer edge (z = edge − g) and convolved as one matrix product. The uniform
 understory multiplies E[P] by its own transmission; the ground pulse is ρg·E[P(0)]·Δz·
 pulse(z_j − g), for a Gaussian or a measured pulse alike. Slopes are not modelled here.
 """
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
+from . import expected_depth, expected_numba
 from .crowns import CROWN_SHAPES, SHAPE_NAMES
-from .expected_tables import TailTable, catmull_rom, exp_grid, grid_position, radial_rule
+from .expected_tables import (
+    catmull_rom,
+    grid_operator,
+    radial_rule,
+    tail_integrals,
+    tail_matrix,
+)
+from .expected_vectors import DEFAULT_FREE, MIX_FIELDS, VECTOR_FIELDS, physical_rows
+from .expected_vectors import FIELD_INDEX as _I
 from .pulse import layer_kernel
 from .stand_params import HEIGHT_DISTRIBUTIONS, StandParams
-
-#: Every quantity a parameter vector may carry, in the order of the model's full vector.
-VECTOR_FIELDS = (
-    "density",
-    "height_mean",
-    "height_sd",
-    "cohort2_fraction",
-    "cohort2_height_mean",
-    "cohort2_height_sd",
-    "crown_length_ratio",
-    "crown_radius_intercept",
-    "crown_radius_slope",
-    "favd",
-    "understory_height",
-    "understory_lai",
-    "canopy_reflectance",
-    "ground_reflectance",
-    "ground_elevation",
-) + tuple(f"mix_{name}" for name in SHAPE_NAMES)
-
-#: Vector fields holding cohort 1's crown-shape fractions (≥ 0, summing to 1).
-MIX_FIELDS = tuple(f"mix_{name}" for name in SHAPE_NAMES)
-
-#: The default free parameters of :class:`ExpectedWaveformModel` (its vector layout).
-DEFAULT_FREE = (
-    "density",
-    "height_mean",
-    "height_sd",
-    "crown_length_ratio",
-    "crown_radius_slope",
-    "favd",
-    "canopy_reflectance",
-    "ground_reflectance",
-    "ground_elevation",
-)
-
-_I = {name: i for i, name in enumerate(VECTOR_FIELDS)}
 
 
 @dataclass(frozen=True)
@@ -109,19 +89,23 @@ class ModelSettings:
         Fine layers per bin; ``None`` uses the explicit engine's rule (layers ≤ σz/4).
     depth_nodes : int or None
         ``None``: evaluate the tree optical depth at every fine-layer edge. An integer:
-        evaluate it on that many heights from 0 to the tallest tree and interpolate to the
-        edges by cubic Hermite (Catmull–Rom) interpolation: much cheaper, and smooth
-        because the depth is already averaged over the height distribution.
+        evaluate E[P] on about that many heights from 0 to the template's tallest tree
+        (a step of whole fine layers) and interpolate to the edges by Catmull–Rom: much
+        cheaper, and smooth because the depth is already averaged over the heights.
     max_elements : int
         Rows are processed in chunks so that no work array exceeds this many elements.
+    backend : str
+        ``"numba"`` (compiled tree depth; needs numba), ``"numpy"``, or ``"auto"``: numba
+        when it can be imported. Both give the same results to rounding.
     """
 
     radial_nodes: int = 6
-    height_nodes: int = 32
+    height_nodes: int = 24
     tail: float = 1e-6
     oversampling: int | None = None
     depth_nodes: int | None = 32
     max_elements: int = 4_000_000
+    backend: str = "auto"
 
 
 #: Settings taken as converged (the reference of the benchmark and the convergence test).
@@ -194,6 +178,7 @@ class ExpectedWaveformModel:
         self.oversampling = m
         self.layer_height = dz / m
         q_min, taps = layer_kernel(instrument.pulse, dz, m, 1e-9)
+        self._q_min, self._taps = q_min, taps
         # layers that reach a window bin: q = j·m − i within [q_min, q_min + len − 1]
         q_max = q_min + taps.size - 1
         self._layer0 = -q_max
@@ -203,21 +188,51 @@ class ExpectedWaveformModel:
         inside = (q >= q_min) & (q <= q_max)
         self._kernel = np.where(inside, taps[np.clip(q - q_min, 0, taps.size - 1)], 0.0)
         origin = heights[0] - dz / 2
+        self._origin = origin
         self._edges = origin + (self._layer0 + np.arange(n_layers + 1)) * self.layer_height
-        # radial quadrature and the per-shape chord fractions
+        # radial quadrature: the nodes of every shape in the model, side by side
         mixes = np.array([template.shape_mix, template.cohort2_shape_mix])
         free_mix = [f"mix_{name}" in self.parameter_names for name in SHAPE_NAMES]
         self._shapes = [k for k in range(len(SHAPE_NAMES)) if mixes[:, k].any() or free_mix[k]]
         self._mixes = mixes
-        self._s_lo, self._s_hi, self._weights = [], [], []
-        for k in self._shapes:
+        self._mix_index = np.array([_I[MIX_FIELDS[k]] for k in self._shapes], np.intp)
+        parts = []
+        for position, k in enumerate(self._shapes):
             rho, weights = radial_rule(SHAPE_NAMES[k], s.radial_nodes)
             lo, hi = CROWN_SHAPES[SHAPE_NAMES[k]].extent(rho)
-            self._weights.append(weights)
-            self._s_lo.append(np.asarray(lo, float))
-            self._s_hi.append(np.asarray(hi, float))
+            parts.append((np.full(rho.size, position), weights, lo, hi))
+        node_shape, self._node_weight, self._s_lo, self._s_hi = (
+            np.concatenate([np.asarray(p[i], float) for p in parts]) for i in range(4)
+        )
+        self._node_shape = node_shape.astype(np.intp)
+        ratio = np.asarray(template.favd_ratio, float)[self._shapes]
+        self._node_favd = ratio[self._node_shape]
+        # tail integrals as a matrix product on short grids, cumulative sums on long ones
+        self._tails = tail_matrix(s.height_nodes) if s.height_nodes <= 128 else None
+        self._unit_grid = np.arange(s.height_nodes, dtype=float)
         self._family = HEIGHT_DISTRIBUTIONS[template.height_family]
         self._kappa = instrument.extinction_per_favd
+        if s.backend not in ("auto", "numba", "numpy"):
+            raise ValueError(f"backend must be 'auto', 'numba' or 'numpy', got {s.backend!r}")
+        if s.backend == "numba" and not expected_numba.AVAILABLE:
+            raise ImportError("ModelSettings(backend='numba') needs numba installed")
+        compiled = s.backend != "numpy" and expected_numba.AVAILABLE and s.height_nodes >= 4
+        self.backend = "numba" if compiled else "numpy"
+        if compiled:
+            self._add_depth = expected_numba.add_tree_depth
+        else:
+            self._add_depth = partial(
+                expected_depth.add_tree_depth,
+                tails=self._tails,
+                a_groups=expected_depth.groups(self._s_lo),
+                b_groups=expected_depth.groups(self._s_hi),
+            )
+        # the depth grid of the fast path: whole fine layers, about depth_nodes nodes up
+        # to the template's tallest tree
+        self._per_cell, self._operators = None, {}
+        if s.depth_nodes is not None:
+            span = float(self._top(self._cohorts(self._base[None, :]))[0])
+            self._per_cell = max(1, round(span / max(s.depth_nodes - 1, 1) / self.layer_height))
 
     # vectors ---------------------------------------------------------------------------
     @property
@@ -263,28 +278,7 @@ class ExpectedWaveformModel:
         return self._valid(self._full(theta))
 
     def _valid(self, v):
-        ok = np.all(np.isfinite(v), axis=1)
-        v = np.where(np.isfinite(v), v, 1.0)
-        col = lambda name: v[:, _I[name]]  # noqa: E731
-        ok &= (col("density") >= 0) & (col("height_mean") > 0) & (col("height_sd") > 0)
-        ok &= (col("cohort2_fraction") >= 0) & (col("cohort2_fraction") <= 1)
-        ok &= (col("crown_length_ratio") > 0) & (col("crown_length_ratio") <= 1)
-        ok &= (col("crown_radius_intercept") >= 0) & (col("crown_radius_slope") > 0)
-        ok &= (col("favd") > 0) & (col("understory_height") > 0) & (col("understory_lai") >= 0)
-        ok &= (col("canopy_reflectance") >= 0) & (col("ground_reflectance") >= 0)
-        mix = v[:, [_I[name] for name in MIX_FIELDS]]
-        ok &= np.all(mix >= 0, axis=1) & (np.abs(mix.sum(axis=1) - 1.0) < 1e-6)
-        t = self.template.height_truncation
-        ok &= self._family.valid(col("height_mean"), col("height_sd"), t)
-        two = col("cohort2_fraction") > 0
-        c2_ok = (col("cohort2_height_mean") > 0) & (col("cohort2_height_sd") > 0)
-        ok &= ~two | (
-            c2_ok
-            & self._family.valid(
-                np.abs(col("cohort2_height_mean")) + 1e-9, np.abs(col("cohort2_height_sd")), t
-            )
-        )
-        return ok
+        return physical_rows(v, self._family, self.template.height_truncation)
 
     # evaluation --------------------------------------------------------------------------
     def __call__(self, theta) -> np.ndarray:
@@ -326,10 +320,17 @@ class ExpectedWaveformModel:
         return self._gap(full, z)
 
     def _canopy(self, v):
-        g = v[:, _I["ground_elevation"]]
-        # only edges that can hold canopy for some row need the tables
+        """Canopy waveforms before ρv (n, n_bins) and E[P(0)] (n,)."""
         cohorts = self._cohorts(v)
         top = self._top(cohorts)
+        if self._per_cell is None or np.any(v[:, _I["understory_lai"]] > 0):
+            return self._canopy_edges(v, cohorts, top)
+        return self._canopy_grid(v, cohorts, top)
+
+    def _canopy_edges(self, v, cohorts, top):
+        """E[P] at every fine-layer edge, then the layer kernel as a matrix product."""
+        g = v[:, _I["ground_elevation"]]
+        # only edges that can hold canopy for some row need the tables
         lo_edge = np.searchsorted(self._edges, g.min(), side="right") - 1
         hi_edge = np.searchsorted(self._edges, (g + top).max(), side="right") + 1
         lo_edge, hi_edge = max(lo_edge, 0), min(hi_edge, self._edges.size - 1)
@@ -342,20 +343,66 @@ class ExpectedWaveformModel:
             canopy = energy @ self._kernel[lo_edge:hi_edge]
         return canopy, p[:, 0]
 
+    def _canopy_grid(self, v, cohorts, top):
+        """E[P] on a grid of whole fine layers anchored on a bin edge at or below each
+        row's ground, so that interpolation, layer energies and the pulse are one
+        constant matrix; each row is then shifted by whole bins."""
+        n, dz = v.shape[0], self.instrument.bin_height
+        g = v[:, _I["ground_elevation"]]
+        step = self._per_cell * self.layer_height
+        shift = np.floor((g - self._origin) / dz)
+        z0 = self._origin + shift * dz - g  # in (−Δz, 0]
+        # up to the tallest tree, but no further than three cells beyond the last layer
+        # that reaches the window (a taller canopy only needs E[P] below that)
+        reach = np.max(np.ceil((self._edges[-1] - g - z0) / step)) + 3
+        nodes = max(2, int(min(np.max(np.ceil((top - z0) / step)), reach)) + 1)
+        z = z0[:, None] + step * np.arange(nodes)
+        np.maximum(z, 0.0, out=z)
+        # E[P] − 1 (zero above the trees): a bare row gives exactly zero
+        lost = np.expm1(-self._tree_depth(v, z, cohorts))
+        matrix, first = self._grid_operator(nodes)
+        local = lost @ matrix
+        # row r's sample k lands in bin shift_r + first + k; bins outside the window go to
+        # two spare columns (flat indices: much faster than a 2-D scatter)
+        width = self.heights.size + 2
+        cols = (shift.astype(np.intp) + first)[:, None] + np.arange(matrix.shape[1])
+        np.clip(cols, -1, width - 2, out=cols)
+        cols += (1 + width * np.arange(n))[:, None]
+        out = np.zeros((n, width))
+        out.ravel()[cols.ravel()] = local.ravel()
+        return out[:, 1:-1], 1.0 + lost[:, 0]
+
+    def _grid_operator(self, nodes):
+        """:func:`forward.expected_tables.grid_operator` for ``nodes``, cached."""
+        if nodes not in self._operators:
+            if len(self._operators) >= 16:
+                self._operators.clear()
+            self._operators[nodes] = grid_operator(
+                nodes, self._per_cell, self.oversampling, self._q_min, self._taps
+            )
+        return self._operators[nodes]
+
     def _cohorts(self, v):
-        """Per cohort: (weight, mean, sd, lo, hi), with the grid span [lo, hi] (m)."""
-        t, tail = self.template.height_truncation, self.settings.tail
+        """Per cohort: (weight, distribution arguments, lo, hi), the grid span [lo, hi] (m).
+
+        The arguments ``(shape_args, loc, scale)`` of the family, per row, shaped (n, 1)
+        for the height grid.
+        """
+        t, tail, fast = self.template.height_truncation, self.settings.tail, self._family.fast
         out = []
         for weight, mean, sd in self._cohort_columns(v):
-            lo = self._family.ppf(tail, mean, sd, t)
-            hi = np.maximum(self._family.isf(tail, mean, sd, t), lo + 1e-6)
-            out.append((weight, mean, sd, lo, hi))
+            shape_args, loc, scale = self._family.arguments(mean, sd, t)
+            lo = fast("ppf", tail, shape_args, loc, scale)
+            hi = np.maximum(fast("isf", tail, shape_args, loc, scale), lo + 1e-6)
+            column = tuple(np.asarray(x, float)[..., None] for x in shape_args)
+            args = (column, np.asarray(loc, float)[..., None], scale[:, None])
+            out.append((weight, args, lo, hi))
         return out
 
     @staticmethod
     def _top(cohorts):
         """Tallest tree of any active cohort (m), per row."""
-        return np.max([np.where(w > 0, hi, 0.0) for w, _, _, _, hi in cohorts], axis=0)
+        return np.max([np.where(w > 0, hi, 0.0) for w, _, _, hi in cohorts], axis=0)
 
     def _cohort_columns(self, v):
         f2 = v[:, _I["cohort2_fraction"]]
@@ -375,67 +422,54 @@ class ExpectedWaveformModel:
         nodes = self.settings.depth_nodes
         if nodes is None:
             gap = np.exp(-self._tree_depth(v, z, cohorts))
-        else:  # E[P] of the trees on a uniform grid from 0 to the tallest tree, then cubic
+        else:  # the depth on a uniform grid from 0 to the tallest tree, then cubic
             top = self._top(cohorts)
             grid = top[:, None] * np.linspace(0.0, 1.0, nodes)
-            depth = self._tree_depth(v, grid, cohorts, uniform=True)
-            gap = catmull_rom(np.exp(-depth), z, top / (nodes - 1), beyond=1.0)
+            depth = self._tree_depth(v, grid, cohorts)
+            # interpolate the optical depth (not E[P]): E[P] stays in (0, 1] in dense stands
+            depth = catmull_rom(depth, z, top / (nodes - 1), beyond=0.0)
+            gap = np.exp(-np.maximum(depth, 0.0))
         lai = v[:, _I["understory_lai"], None]
         if np.any(lai > 0):  # the uniform layer multiplies every column's gap
             hu = v[:, _I["understory_height"], None]
             gap = gap * np.exp(-self._kappa * lai * np.clip(hu - z, 0.0, None) / hu)
         return gap
 
-    def _tree_depth(self, v, z, cohorts, uniform=False):
+    def _tree_depth(self, v, z, cohorts):
         """λ·E[∫(1 − e^{−κuℓ}) dA] at heights z ≥ 0 (n, e), for full vectors v (n, …).
 
-        ``uniform``: z is a uniform grid per row starting at 0 (exponentials by products).
+        Per cohort, every radial node j of every shape contributes A_j(z/b_j) + B_j(z/a_j)
+        with two functions of one height t each (see the module docstring),
 
-        Each cohort gets its own height grid, spanning its own distribution, so that a
-        truncated distribution has its jumps only at the grid ends.
+            A_j(t) = Q0(t) − S_j(t; κu b_j),
+            B_j(t) = e^{−κu(b_j − a_j) t} [S_j(t; κu b_j) − S_j(t; κu(b_j − a_j))],
+
+        where S(t; r) = ∫_t^∞ g(h) e^{−r(h − t)} dh is a discounted tail. They are
+        tabulated with their exact slopes (A' = −r_b S_b, B' = −r_d B + e^{−r_d t}(r_b S_b
+        − r_d S_d)) on each cohort's height grid and read by cubic Hermite interpolation;
+        nodes sharing a(ρ) (every node of a cone, cylinder or hemi-ellipsoid) or b(ρ) are
+        summed before the read.
         """
-        n, s = v.shape[0], self.settings
-        nh = s.height_nodes
-        t = self.template.height_truncation
+        nh = self.settings.height_nodes
         c = v[:, _I["crown_length_ratio"], None]
-        favd = self.template.favd_by_shape() / self.template.favd
+        a = np.maximum(1.0 - c + c * self._s_lo, 1e-12)  # (n, J)
+        b = 1.0 - c + c * self._s_hi
+        ku = (self._kappa * v[:, _I["favd"]])[:, None] * self._node_favd
+        mix = v[:, self._mix_index]  # cohort 1's fractions of the model's shapes
         depth = np.zeros_like(z)
-        rows = (np.arange(n) * nh)[:, None, None]
-        for cohort, (weight, mean, sd, lo, hi) in enumerate(cohorts):
+        for cohort, (weight, args, lo, hi) in enumerate(cohorts):
             step = (hi - lo) / (nh - 1)
-            h = lo[:, None] + step[:, None] * np.arange(nh)
-            pdf = self._family.pdf(h, mean[:, None], sd[:, None], t)
-            norm = TailTable(pdf, step).q[:, 0]
+            h = lo[:, None] + step[:, None] * self._unit_grid
+            pdf = self._family.fast("pdf", h, *args)
+            norm = step * tail_integrals(pdf, self._tails)[:, 0]
             radius = (
                 v[:, _I["crown_radius_intercept"], None] + v[:, _I["crown_radius_slope"], None] * h
             )
-            scale = np.pi * v[:, _I["density"]] / 1e4 * weight / np.where(norm > 0, norm, 1.0)
-            g_cohort = scale[:, None] * radius**2 * pdf
-            inv = (1.0 / step)[:, None, None]
-            for k, shape in enumerate(self._shapes):
-                if cohort == 0:  # cohort 1's mix is part of the vector
-                    fraction = v[:, _I[MIX_FIELDS[shape]], None]
-                else:
-                    fraction = self._mixes[cohort, shape]
-                if not np.any(fraction):
-                    continue
-                g_h = fraction * g_cohort
-                ku = (self._kappa * v[:, _I["favd"]] * favd[shape])[:, None]
-                a = np.maximum(1 - c + c * self._s_lo[k], 1e-12)  # (n, J)
-                b = 1 - c + c * self._s_hi[k]
-                f1 = g_h[:, None, :] * exp_grid(-ku * (b - a), lo, step, nh)
-                f2 = g_h[:, None, :] * exp_grid(-ku * b, lo, step, nh)
-                q0, q1, q2 = (TailTable(f, step) for f in (g_h, f1, f2))
-                pos_b = grid_position(z[:, None, :] / b[:, :, None], lo[:, None, None], inv, nh)
-                pos_a = grid_position(z[:, None, :] / a[:, :, None], lo[:, None, None], inv, nh)
-                j_rows = (np.arange(n * b.shape[1]) * nh).reshape(n, -1)[:, :, None]
-                term = q0.at(rows, *pos_b) - q1.at(j_rows, *pos_a)
-                if uniform:
-                    grow = exp_grid(
-                        np.broadcast_to(ku, b.shape), z[:, 0], z[:, 1] - z[:, 0], z.shape[1]
-                    )
-                else:
-                    grow = np.exp(ku[:, :, None] * z[:, None, :])
-                term -= grow * (q2.at(j_rows, *pos_b) - q2.at(j_rows, *pos_a))
-                depth += np.einsum("j,nje->ne", self._weights[k], term)
+            scale = (np.pi / 1e4) * v[:, _I["density"]] * weight / np.where(norm > 0, norm, 1.0)
+            g = scale[:, None] * radius**2 * pdf
+            fractions = mix if cohort == 0 else self._mixes[1, self._shapes][None, :]
+            w = fractions[:, self._node_shape] * self._node_weight  # (n, J)
+            if not np.any(w):
+                continue
+            self._add_depth(g, lo, step, a, b, ku, w, z, depth)
         return depth

@@ -1,10 +1,12 @@
 """Numerical building blocks of :mod:`forward.expected`.
 
-The disc quadrature per crown shape, the tail-integral tables over tree height (fourth
-order: four-point cell rule and cubic Hermite reads), exponentials on uniform grids by
-cumulative products, and Catmull–Rom interpolation on uniform grids. All are vectorised
-over a batch of rows.
+The disc quadrature per crown shape, tail integrals over tree height as one matrix
+product (a fourth-order cell rule), discounted tails, cubic Hermite reads of tabulated
+functions, and Catmull–Rom interpolation on uniform grids, either per row or as a
+constant matrix. All are vectorised over a batch of rows and use float64 throughout.
 """
+
+import math
 
 import numpy as np
 from numpy.polynomial.legendre import leggauss
@@ -30,6 +32,10 @@ RADIAL_NODES = {
     "hemi-ellipsoid": lambda n: n,
 }
 
+#: Largest exponent (rate × grid span) used by :func:`discounted_tails`; larger rates are
+#: capped there (crowns that opaque return the same as any larger rate, to rounding).
+MAX_EXPONENT = 600.0
+
 
 def radial_rule(shape, nodes):
     """Nodes ρ and area weights (summing to 1) of the disc quadrature for ``shape``.
@@ -38,89 +44,261 @@ def radial_rule(shape, nodes):
     """
     x, w = leggauss(RADIAL_NODES.get(shape, lambda n: n)(nodes))
     x, w = 0.5 * (x + 1.0), 0.5 * w
-    variable = RADIAL_VARIABLE.get(shape, "rho")
-    if variable == "rho":
+    if RADIAL_VARIABLE.get(shape, "rho") == "rho":
         return x, 2.0 * x * w  # d(ρ²) = 2ρ dρ
-    if variable == "rho2":
-        return np.sqrt(x), w  # area-uniform
     return np.sqrt(1.0 - x * x), 2.0 * x * w  # ρ² = 1 − u², d(ρ²) = −2u du
 
 
-class TailTable:
-    """Tail integral Q(t) = ∫_t^{h_last} f dh of samples f on a uniform grid (per row).
+def _cell_rule(padded):
+    """Four-point cell integrals (per unit step) of values padded by one ghost each side."""
+    cell = 13.0 * (padded[..., 1:-2] + padded[..., 2:-1]) - padded[..., :-3] - padded[..., 3:]
+    return cell / 24.0
 
-    Cells are integrated by the four-point rule δ/24·(−f₋₁ + 13f₀ + 13f₁ − f₂) (fourth
-    order; the ghost values beyond the grid ends are quadratic extrapolations, so a
-    density that jumps at a grid end costs nothing), and Q is read between nodes by cubic
-    Hermite interpolation with the exact slopes Q' = −f.
+
+def _with_ghosts(f):
+    """``f`` padded by quadratic extrapolations (zeros when it has fewer than 3 nodes)."""
+    padded = np.zeros((*f.shape[:-1], f.shape[-1] + 2))
+    padded[..., 1:-1] = f
+    if f.shape[-1] >= 3:
+        padded[..., 0] = 3 * f[..., 0] - 3 * f[..., 1] + f[..., 2]
+        padded[..., -1] = 3 * f[..., -1] - 3 * f[..., -2] + f[..., -3]
+    return padded
+
+
+def tail_integrals(f, matrix=None):
+    """Tail integrals per unit step, Q[i] = ∫_{h_i}^{h_last} f dh / step, of samples f.
+
+    Each cell is integrated by the four-point rule δ/24·(−f₋₁ + 13f₀ + 13f₁ − f₂) (fourth
+    order); the ghost values beyond the grid ends are quadratic extrapolations, so a
+    density that jumps at a grid end costs nothing. With ``matrix`` (the
+    :func:`tail_matrix` of the grid) this is one matrix product, the fastest way on short
+    grids; without, a cumulative sum.
     """
-
-    def __init__(self, f, step):
-        padded = np.empty((*f.shape[:-1], f.shape[-1] + 2))
-        padded[..., 1:-1] = f
-        if f.shape[-1] >= 3:
-            padded[..., 0] = 3 * f[..., 0] - 3 * f[..., 1] + f[..., 2]
-            padded[..., -1] = 3 * f[..., -1] - 3 * f[..., -2] + f[..., -3]
-        else:
-            padded[..., 0] = padded[..., -1] = 0.0
-        cell = 13.0 * (padded[..., 1:-2] + padded[..., 2:-1])
-        cell -= padded[..., :-3] + padded[..., 3:]
-        scale = (step / 24.0).reshape((-1,) + (1,) * (f.ndim - 1))
-        q = np.zeros(f.shape)
-        q[..., :-1] = np.cumsum(cell[..., ::-1], axis=-1)[..., ::-1]
-        q *= scale
-        self.q = q
-        self._flat_q = q.ravel()
-        self._flat_d = (f * (24.0 * scale)).ravel()  # −dQ/dk per grid step
-        self.nodes = q.shape[-1]
-
-    def at(self, rows, i, t):
-        """Q at cell ``i`` and fraction ``t`` of rows starting at flat node ``rows``."""
-        idx = rows + i
-        q0, q1 = self._flat_q[idx], self._flat_q[idx + 1]
-        d0, d1 = self._flat_d[idx], self._flat_d[idx + 1]
-        # cubic Hermite with values q0, q1 and slopes −d0, −d1 (per grid step)
-        delta = q1 - q0
-        return q0 - t * (d0 - t * (3 * delta + 2 * d0 + d1 - t * (2 * delta + d0 + d1)))
+    if matrix is not None:
+        return f @ matrix
+    q = np.zeros(f.shape)
+    q[..., :-1] = np.cumsum(_cell_rule(_with_ghosts(f))[..., ::-1], axis=-1)[..., ::-1]
+    return q
 
 
-def exp_grid(rate, start, step, count):
-    """exp(rate·(start + k·step)) for k < count, shape (*rate.shape, count).
+def tail_matrix(nodes):
+    """Matrix T (nodes, nodes) with ``f @ T`` = :func:`tail_integrals` of f: every step of
+    the rule is linear in f."""
+    return tail_integrals(np.eye(nodes))
 
-    ``rate`` is (n, p) and ``start``, ``step`` are (n,): one exponential per (row, p) and
-    a cumulative product along the grid (much cheaper than an exponential per point).
+
+def decay_grid(rate, step, count):
+    """exp(−rate·k·step) for k < count, shape (*rate.shape, count), by repeated squaring.
+
+    ``rate`` is (n, p) and ``step`` (n,); only log2(count) multiplications of growing
+    slices, no exponential per grid point.
     """
-    ratio = np.exp(rate * step[:, None])
     out = np.empty((*rate.shape, count))
-    out[..., 0] = np.exp(rate * start[:, None])
-    out[..., 1:] = ratio[..., None]
-    return np.cumprod(out, axis=-1, out=out)
+    out[..., 0] = 1.0
+    if count > 1:
+        factor = np.exp(-rate * step[:, None])[..., None]
+        filled = 1
+        while filled < count:
+            take = min(filled, count - filled)
+            np.multiply(out[..., :take], factor, out=out[..., filled : filled + take])
+            filled += take
+            factor = factor * factor
+    return out
 
 
-def grid_position(x, lo, inv, nh):
-    p = np.clip((x - lo) * inv, 0.0, nh - 1.0)
-    i = np.minimum(p.astype(np.intp), nh - 2)
-    return i, p - i
+#: Monomial coefficients (powers 0…3) of the cubic Lagrange basis on s = −1, 0, 1, 2.
+LAGRANGE_CUBIC = (
+    np.array(
+        [
+            [0.0, -2.0, 3.0, -1.0],
+            [6.0, -3.0, -6.0, 3.0],
+            [0.0, 6.0, 3.0, -3.0],
+            [0.0, -1.0, 0.0, 1.0],
+        ]
+    )
+    / 6.0
+)
+
+#: Taylor coefficients in x of :func:`cell_weights` (4 weights × 14 powers), for x < 0.5:
+#: the moments ∫_0^1 s^n e^{−xs} ds = Σ_k (−x)^k / (k!·(n + k + 1)), through the basis.
+WEIGHT_SERIES = LAGRANGE_CUBIC @ np.array(
+    [[(-1.0) ** k / (math.factorial(k) * (n + k + 1)) for k in range(14)] for n in range(4)]
+)
+
+
+def cell_weights(x):
+    """Weights (…, 4) of g(−1), g(0), g(1), g(2) in ∫_0^1 g(s)·e^{−x s} ds, g cubic.
+
+    The exponential is integrated exactly against the cubic through the four values (an
+    exponentially fitted four-point rule): at x = 0 the weights are (−1, 13, 13, −1)/24,
+    and they stay bounded for any x ≥ 0, where the plain rule applied to g·e^{−xs} blows
+    up once x ≫ 1. Below x = 0.5 the weights are their Taylor series (:data:`WEIGHT_SERIES`);
+    above, the moments follow the recurrence M_n = (n·M_{n−1} − e^{−x})/x.
+    """
+    x = np.asarray(x, float)[..., None]
+    series = np.full((*x.shape[:-1], 4), WEIGHT_SERIES[:, -1])
+    for k in range(WEIGHT_SERIES.shape[1] - 2, -1, -1):
+        series *= x
+        series += WEIGHT_SERIES[:, k]
+    xl = np.maximum(x, 0.5)
+    e = np.exp(-xl)
+    moments = [-np.expm1(-xl) / xl]
+    for n in range(1, 4):
+        moments.append((n * moments[-1] - e) / xl)
+    recurrence = np.concatenate(moments, axis=-1) @ LAGRANGE_CUBIC.T
+    return np.where(x < 0.5, series, recurrence)
+
+
+def discounted_tails(g, rate, step, tails=None):
+    """S(h_i) = ∫_{h_i}^{h_last} g(h)·exp(−rate·(h − h_i)) dh on a uniform grid.
+
+    Each cell is integrated by :func:`cell_weights` (the cubic through four samples of g,
+    times the exact exponential; ghost samples beyond the grid ends are quadratic
+    extrapolations), and S_i = Σ_{m ≥ i} e^{−rate·(h_m − h_i)}·C_m.
+
+    Parameters
+    ----------
+    g : array (n, nodes)
+        Samples of the integrand's density on each row's grid.
+    rate : array (n, p) (1/m)
+        Decay rates, non-negative; capped so that rate × span ≤ :data:`MAX_EXPONENT`.
+    step : array (n,) (m)
+        Grid steps.
+    tails : array or None
+        Not None on short grids: the sums are then a matrix product.
+
+    Returns
+    -------
+    S : array (n, p, nodes)
+    rate : array (n, p)
+        The rates used (after the cap).
+    decay : array (n, p, nodes)
+        exp(−rate·(h − h_0)).
+    """
+    nodes = g.shape[-1]
+    span = step * (nodes - 1)
+    rate = np.minimum(rate, (MAX_EXPONENT / np.maximum(span, 1e-300))[:, None])
+    weights = cell_weights(rate * step[:, None])[..., None, :]  # (n, p, 1, 4)
+    padded = _with_ghosts(g)[:, None, :]
+    cells = weights[..., 0] * padded[..., : nodes - 1]
+    for k in range(1, 4):
+        cells += weights[..., k] * padded[..., k : nodes - 1 + k]
+    decay = decay_grid(rate, step, nodes)
+    cells *= decay[..., :-1]
+    s = np.zeros(decay.shape)
+    if tails is not None:
+        s[..., :-1] = cells @ np.triu(np.ones((nodes - 1, nodes - 1))).T
+    else:
+        s[..., :-1] = np.cumsum(cells[..., ::-1], axis=-1)[..., ::-1]
+    s *= step[:, None, None]
+    s /= decay
+    return s, rate, decay
+
+
+def hermite_read(values, slopes, rows, position, nodes):
+    """Read tabulated functions at fractional grid positions by cubic Hermite interpolation.
+
+    Parameters
+    ----------
+    values, slopes : array
+        Flat tables (rows of ``nodes`` values) and their slopes per grid step.
+    rows : int array, broadcastable to ``position``
+        Flat index of each read's table row.
+    position : array
+        Grid positions (0 = first node); clipped to the grid. Overwritten.
+    """
+    np.clip(position, 0.0, nodes - 1.0, out=position)
+    i = position.astype(np.intp)
+    np.minimum(i, nodes - 2, out=i)
+    position -= i
+    i += rows
+    y0, y1 = values[i], values[i + 1]
+    d0, d1 = slopes[i], slopes[i + 1]
+    y1 -= y0  # the rise over the cell
+    t = position
+    # y0 + t·d0 + t²·(3Δ − 2d0 − d1) + t³·(d0 + d1 − 2Δ)
+    d1 += d0
+    cubic = d1 - 2.0 * y1
+    cubic *= t
+    cubic += 3.0 * y1 - d0 - d1
+    cubic *= t
+    cubic += d0
+    cubic *= t
+    cubic += y0
+    return cubic
+
+
+def _catmull_rom_weights(t):
+    """Weights of y(k−1), y(k), y(k+1), y(k+2) at fraction t of cell k (Catmull–Rom)."""
+    t2, t3 = t * t, t * t * t
+    return (
+        -0.5 * t + t2 - 0.5 * t3,
+        1.0 - 2.5 * t2 + 1.5 * t3,
+        0.5 * t + 2.0 * t2 - 1.5 * t3,
+        -0.5 * t2 + 0.5 * t3,
+    )
 
 
 def catmull_rom(values, z, step, beyond=0.0):
     """Catmull–Rom interpolation of ``values`` (n, m) on grids 0, step, … at z (n, e).
 
-    Beyond the last node the values are taken as ``beyond`` (no crown above the tallest
-    tree: zero depth, unit gap).
+    Below the first node the values are extrapolated linearly; beyond the last node they
+    are taken as ``beyond`` (no crown above the tallest tree: zero depth, unit gap).
     """
     n, m = values.shape
     y = np.full((n, m + 3), float(beyond))
     y[:, 1 : m + 1] = values
-    y[:, 0] = 2 * values[:, 0] - values[:, 1]  # linear extrapolation below z = 0
-    y0, y1, y2, y3 = y[:, :-3], y[:, 1:-2], y[:, 2:-1], y[:, 3:]
-    coef = np.empty((n, m, 4))
-    coef[..., 0] = y1
-    coef[..., 1] = 0.5 * (y2 - y0)
-    coef[..., 2] = y0 - 2.5 * y1 + 2 * y2 - 0.5 * y3
-    coef[..., 3] = 0.5 * (y3 - y0) + 1.5 * (y1 - y2)
+    y[:, 0] = 2 * values[:, 0] - values[:, 1]
     p = np.clip(z / step[:, None], 0.0, m - 1.0)
     i = p.astype(np.intp)
-    t = p - i
-    c = coef.reshape(-1, 4)[(np.arange(n) * m)[:, None] + i]
-    return c[..., 0] + t * (c[..., 1] + t * (c[..., 2] + t * c[..., 3]))
+    weights = _catmull_rom_weights(p - i)
+    i += (np.arange(n) * (m + 3))[:, None]
+    flat = y.ravel()
+    return sum(w * flat[i + k] for k, w in enumerate(weights))
+
+
+def catmull_rom_matrix(nodes, per_cell):
+    """Catmull–Rom interpolation as a matrix, for ``per_cell`` points per grid cell.
+
+    Returns M (nodes, points): the interpolated values ``y @ M`` at the points
+    k/per_cell, k = 0 … (nodes − 1)·per_cell, of values y (…, nodes) on the grid 0, 1, …;
+    below the first node the values are extrapolated linearly and the value beyond the
+    last node is 0, as in :func:`catmull_rom` with ``beyond=0``.
+    """
+    cells = nodes - 1
+    # padded values: y(−1) = 2y(0) − y(1), y(0 … nodes − 1), y(nodes) = 0
+    pad = np.zeros((nodes, nodes + 2))
+    pad[:, 1 : nodes + 1] = np.eye(nodes)
+    pad[0, 0], pad[1, 0] = 2.0, -1.0
+    points = cells * per_cell + 1
+    interp = np.zeros((nodes + 2, points))
+    k = np.arange(points - 1) // per_cell
+    t = (np.arange(points - 1) % per_cell) / per_cell
+    for offset, w in enumerate(_catmull_rom_weights(t)):
+        np.add.at(interp, (k + offset, np.arange(points - 1)), w)
+    interp[nodes, points - 1] = 1.0  # the last node itself
+    return pad @ interp
+
+
+def grid_operator(nodes, per_cell, oversampling, q_min, taps):
+    """Matrix from E[P] − 1 on a depth grid to waveform samples, and its first bin.
+
+    The grid has ``nodes`` points ``per_cell`` fine layers apart, the first on a bin edge;
+    the samples are those of :func:`catmull_rom_matrix` interpolation to every layer edge,
+    layer energies P(top) − P(bottom), and the layer kernel ``(q_min, taps)`` of
+    :func:`forward.pulse.layer_kernel` with ``oversampling`` layers per bin.
+
+    Returns
+    -------
+    matrix : array (nodes, bins)
+        Column k is the sample ``first + k`` bins above the grid's first bin edge.
+    first : int
+    """
+    interp = catmull_rom_matrix(nodes, per_cell)
+    energy = interp[:, 1:] - interp[:, :-1]  # (nodes, layers)
+    layers, m = energy.shape[1], oversampling
+    first = -((-q_min) // m)  # ceil(q_min / m)
+    last = (q_min + taps.size - 1 + layers - 1) // m
+    q = np.arange(first, last + 1)[None, :] * m - np.arange(layers)[:, None] - q_min
+    inside = (q >= 0) & (q < taps.size)
+    return energy @ np.where(inside, taps[np.clip(q, 0, taps.size - 1)], 0.0), first

@@ -30,23 +30,25 @@ import numpy as np
 from .instrument import instrument_preset
 from .stand_params import StandParams
 
+#: The BOREAS old jack pine stand as :class:`StandParams` values (see above), less the shape.
+JACK_PINE = {
+    "density": 1900.0,
+    "height_family": "truncnorm",
+    "height_mean": 13.5,
+    "height_sd": 0.75,
+    "height_truncation": 2.0,
+    "crown_length_ratio": 0.45,
+    "crown_radius_intercept": 0.1,
+    "crown_radius_slope": 0.095,
+    "favd": 0.8,
+    "canopy_reflectance": 0.45,
+    "ground_reflectance": 0.3,
+}
+
 
 def jack_pine_params(shape="hemi-ellipsoid") -> StandParams:
     """The BOREAS old jack pine stand (one crown shape for all trees)."""
-    return StandParams(
-        density=1900.0,
-        height_family="truncnorm",
-        height_mean=13.5,
-        height_sd=0.75,
-        height_truncation=2.0,
-        shape_mix=shape,
-        crown_length_ratio=0.45,
-        crown_radius_intercept=0.1,
-        crown_radius_slope=0.095,
-        favd=0.8,
-        canopy_reflectance=0.45,
-        ground_reflectance=0.3,
-    )
+    return StandParams(shape_mix=shape, **JACK_PINE)
 
 
 def jack_pine_instrument():
@@ -55,34 +57,19 @@ def jack_pine_instrument():
 
 
 #: Age (years) → (density stems/ha, upper cohort fraction, upper (mean, sd) m,
-#: lower (mean, sd) m, upper shape mix, lower shape mix). Our calibration (see above).
+#: lower (mean, sd) m, deciduous fraction of the upper cohort, of the lower cohort).
+#: Deciduous trees are ellipsoids and conifers cones. Our calibration (see above).
 SUCCESSIONAL = {
-    5: (9000.0, 0.35, (5.2, 0.6), (2.0, 0.5), {"ellipsoid": 1.0}, {"cone": 1.0}),
-    20: (
-        4000.0,
-        0.06,
-        (15.0, 2.0),
-        (6.5, 1.5),
-        {"ellipsoid": 0.8, "cone": 0.2},
-        {"ellipsoid": 0.7, "cone": 0.3},
-    ),
-    60: (
-        2400.0,
-        0.07,
-        (20.0, 1.5),
-        (8.5, 1.5),
-        {"ellipsoid": 0.5, "cone": 0.5},
-        {"ellipsoid": 0.4, "cone": 0.6},
-    ),
-    200: (
-        1200.0,
-        0.6,
-        (21.0, 1.5),
-        (8.0, 2.0),
-        {"ellipsoid": 0.3, "cone": 0.7},
-        {"ellipsoid": 0.3, "cone": 0.7},
-    ),
+    5: (9000.0, 0.35, (5.2, 0.6), (2.0, 0.5), 1.0, 0.0),
+    20: (4000.0, 0.06, (15.0, 2.0), (6.5, 1.5), 0.8, 0.7),
+    60: (2400.0, 0.07, (20.0, 1.5), (8.5, 1.5), 0.5, 0.4),
+    200: (1200.0, 0.6, (21.0, 1.5), (8.0, 2.0), 0.3, 0.3),
 }
+
+
+def _deciduous_mix(fraction):
+    """Shape mix of a cohort with ``fraction`` deciduous trees (ellipsoids), rest cones."""
+    return {"ellipsoid": fraction, "cone": 1.0 - fraction}
 
 
 def successional_params(age, shape=None) -> StandParams:
@@ -93,11 +80,12 @@ def successional_params(age, shape=None) -> StandParams:
     trees ellipsoids.
     """
     try:
-        density, upper, (m1, s1), (m2, s2), mix1, mix2 = SUCCESSIONAL[int(age)]
+        density, upper, (m1, s1), (m2, s2), deciduous1, deciduous2 = SUCCESSIONAL[int(age)]
     except KeyError:
         raise ValueError(
             f"no successional stand of age {age}; ages are {sorted(SUCCESSIONAL)}"
         ) from None
+    mix1, mix2 = _deciduous_mix(deciduous1), _deciduous_mix(deciduous2)
     if shape is not None:
         mix1 = mix2 = shape
     return StandParams(

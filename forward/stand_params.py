@@ -66,7 +66,11 @@ def _weibull_fast(which, x, args, loc, scale):
     (k,) = args
     if which == "pdf":
         y = np.maximum(x - loc, 0.0) / scale
-        return np.where(x >= loc, k / scale * y ** (k - 1) * np.exp(-(y**k)), 0.0)
+        log_y = np.log(np.maximum(y, 1e-300))
+        # k/λ·y^(k−1)·exp(−y^k) with one logarithm and two exponentials
+        dens = k / scale * np.exp((k - 1) * log_y - np.exp(k * log_y))
+        at_zero = k / scale * np.where(k < 1, np.inf, np.where(k == 1, 1.0, 0.0))
+        return np.where(x >= loc, np.where(y > 0, dens, at_zero), 0.0)
     tail = -np.log1p(-x) if which == "ppf" else -np.log(x)
     return loc + scale * tail ** (1.0 / k)
 
@@ -186,31 +190,31 @@ def height_distribution(family, mean, sd, truncation=2.0):
 # --- the parameter object ------------------------------------------------------------
 
 
-def _as_mix(value, label):
-    """Normalise a shape mix (name → fraction) to a tuple over SHAPE_NAMES."""
-    if isinstance(value, str):
-        value = {value: 1.0}
+def _by_shape(value, label, missing):
+    """A tuple over SHAPE_NAMES from a mapping (name → number; absent names get
+    ``missing``) or from a sequence of one number per shape."""
     if isinstance(value, Mapping):
         unknown = sorted(set(value) - set(SHAPE_NAMES))
         if unknown:
             raise ValueError(f"{label}: unknown crown shape(s) {unknown}; known {SHAPE_NAMES}")
-        value = tuple(float(value.get(name, 0.0)) for name in SHAPE_NAMES)
+        value = tuple(value.get(name, missing) for name in SHAPE_NAMES)
     value = tuple(float(v) for v in value)
     if len(value) != len(SHAPE_NAMES):
-        raise ValueError(f"{label}: need one fraction per shape {SHAPE_NAMES}")
+        raise ValueError(f"{label}: need one number per shape {SHAPE_NAMES}")
+    return value
+
+
+def _as_mix(value, label):
+    """Normalise a shape mix (name → fraction, or one name) to a tuple over SHAPE_NAMES."""
+    value = _by_shape({value: 1.0} if isinstance(value, str) else value, label, 0.0)
     if any(not np.isfinite(v) or v < 0 for v in value) or not np.isclose(sum(value), 1.0):
         raise ValueError(f"{label}: fractions must be ≥ 0 and sum to 1, got {value}")
     return value
 
 
 def _as_ratio(value):
-    if isinstance(value, Mapping):
-        unknown = sorted(set(value) - set(SHAPE_NAMES))
-        if unknown:
-            raise ValueError(f"favd_ratio: unknown crown shape(s) {unknown}")
-        value = tuple(float(value.get(name, 1.0)) for name in SHAPE_NAMES)
-    value = tuple(float(v) for v in value)
-    if len(value) != len(SHAPE_NAMES) or any(not np.isfinite(v) or v <= 0 for v in value):
+    value = _by_shape(value, "favd_ratio", 1.0)
+    if any(not np.isfinite(v) or v <= 0 for v in value):
         raise ValueError(f"favd_ratio needs one positive number per shape {SHAPE_NAMES}")
     return value
 
@@ -378,3 +382,20 @@ class StandParams:
 
     def as_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+#: Values of a generic conifer stand (600 stems/ha, heights 15 ± 3 m) for examples and
+#: tests; every other field keeps its :class:`StandParams` default.
+EXAMPLE_VALUES = {
+    "density": 600.0,
+    "height_mean": 15.0,
+    "height_sd": 3.0,
+    "crown_length_ratio": 0.5,
+    "crown_radius_slope": 0.12,
+    "favd": 0.8,
+}
+
+
+def example_stand(**changes) -> StandParams:
+    """The stand of :data:`EXAMPLE_VALUES` with ``changes`` applied."""
+    return StandParams(**{**EXAMPLE_VALUES, **changes})

@@ -7,24 +7,20 @@ import numpy as np
 import pytest
 
 import forward as fw
-from forward.expected import CONVERGED, ExpectedWaveformModel, ModelSettings
+from forward.expected import (
+    CONVERGED,
+    DEFAULT_FREE,
+    MIX_FIELDS,
+    ExpectedWaveformModel,
+    ModelSettings,
+)
 from forward.realise import realise, scene_extras
-from forward.stand_params import StandParams
+from forward.stand_params import example_stand
 
 INSTRUMENT = fw.instrument_preset("gedi", footprint_sigma_m=2.5)
 
 
-def _params(**changes):
-    base = dict(
-        density=600.0,
-        height_mean=15.0,
-        height_sd=3.0,
-        crown_length_ratio=0.5,
-        crown_radius_slope=0.12,
-        favd=0.8,
-    )
-    base.update(changes)
-    return StandParams(**base)
+_params = example_stand
 
 
 MC_CASES = {
@@ -143,6 +139,62 @@ def test_batch_shape_and_invalid_rows_are_masked_not_raised():
         np.array([model.vector(params), model.vector(params.with_values(density=300.0))])
     )
     np.testing.assert_allclose(objects, vectors)
+
+
+def test_free_shape_mix_reproduces_fixed_mixes_and_masks_bad_mixes():
+    heights = fw.WaveformSimulator(INSTRUMENT).default_heights(30.0, -2.0)
+    params = _params(shape_mix={"cone": 0.3, "ellipsoid": 0.7})
+    free = ExpectedWaveformModel(INSTRUMENT, heights, params, free=DEFAULT_FREE + MIX_FIELDS)
+    assert free.ndim == len(DEFAULT_FREE) + 4
+    assert free.parameter_names[-4:] == MIX_FIELDS
+    cone = params.with_values(shape_mix="cone")
+    theta = np.array([free.vector(params), free.vector(cone)] + [free.vector(params)] * 3)
+    mix = [free.parameter_names.index(name) for name in MIX_FIELDS]
+    theta[2, mix] = [0.3, 0.6, 0.0, 0.0]  # sums to 0.9
+    theta[3, mix] = [1.2, -0.2, 0.0, 0.0]  # a negative fraction
+    theta[4, mix] = [np.nan, 0.7, 0.0, 0.0]
+    out = free.evaluate(theta)
+    assert out.valid.tolist() == [True, True, False, False, False]
+    assert np.all(np.isfinite(out.samples)) and np.all(out.samples[2:] == 0.0)
+    for row, fixed in ((0, params), (1, cone)):
+        expected = ExpectedWaveformModel(INSTRUMENT, heights, fixed)(fixed)[0]
+        np.testing.assert_allclose(out.samples[row], expected, rtol=1e-9, atol=1e-15)
+
+
+@pytest.mark.parametrize("case", sorted(MC_CASES))
+def test_numba_and_numpy_backends_agree(case):
+    pytest.importorskip("numba")
+    params = MC_CASES[case]
+    heights = fw.WaveformSimulator(INSTRUMENT).default_heights(30.0, -3.0)
+    out = {}
+    for backend in ("numpy", "numba"):
+        settings = ModelSettings(backend=backend)
+        model = ExpectedWaveformModel(INSTRUMENT, heights, params, settings=settings)
+        assert model.backend == backend
+        theta = _batch(model, np.random.default_rng(7), n=5)
+        out[backend] = model(theta), model.gap(theta, [0.0, 1.0, 4.0, 12.0])
+    for numpy_result, numba_result in zip(out["numpy"], out["numba"]):
+        np.testing.assert_allclose(numba_result, numpy_result, rtol=1e-10, atol=1e-14)
+
+
+def test_extreme_valid_rows_stay_finite():
+    """Opaque crowns (large FAVD), a heavy height tail and a far ground: finite output."""
+    heights = fw.WaveformSimulator(INSTRUMENT).default_heights(30.0, -3.0)
+    params = _params(height_family="lognormal", shape_mix={"cone": 0.5, "ellipsoid": 0.5})
+    for backend in ("numpy", "auto"):
+        model = ExpectedWaveformModel(
+            INSTRUMENT, heights, params, settings=ModelSettings(backend=backend)
+        )
+        theta = np.repeat(model.vector(params)[None, :], 4, axis=0)
+        index = model.parameter_names.index
+        theta[0, index("favd")] = 400.0
+        theta[1, index("height_sd")] = 200.0  # tallest trees far above the window
+        theta[2, index("ground_elevation")] = 500.0
+        theta[3, index("crown_length_ratio")] = 1.0
+        out = model.evaluate(theta)
+        assert out.valid.all() and np.all(np.isfinite(out.samples)), backend
+        assert np.all((out.gap_ground > 0) & (out.gap_ground < 1))  # gaps between crowns
+        assert out.samples[2].sum() == 0.0  # everything above the window
 
 
 def test_energy_budget_and_limits():

@@ -1,0 +1,96 @@
+"""Parameter vectors of :class:`forward.expected.ExpectedWaveformModel`.
+
+The fields a vector may carry (:data:`VECTOR_FIELDS`), the default free ones, and the
+test of which full vectors describe a physical stand (:func:`physical_rows`): finite
+values within each field's bounds, shape fractions summing to 1, and height moments the
+family supports. Invalid rows are masked by the model, never raised on.
+"""
+
+import numpy as np
+
+from .crowns import SHAPE_NAMES
+
+#: Every quantity a parameter vector may carry, in the order of the model's full vector.
+VECTOR_FIELDS = (
+    "density",
+    "height_mean",
+    "height_sd",
+    "cohort2_fraction",
+    "cohort2_height_mean",
+    "cohort2_height_sd",
+    "crown_length_ratio",
+    "crown_radius_intercept",
+    "crown_radius_slope",
+    "favd",
+    "understory_height",
+    "understory_lai",
+    "canopy_reflectance",
+    "ground_reflectance",
+    "ground_elevation",
+    *(f"mix_{name}" for name in SHAPE_NAMES),
+)
+
+#: Vector fields holding cohort 1's crown-shape fractions (≥ 0, summing to 1).
+MIX_FIELDS = tuple(f"mix_{name}" for name in SHAPE_NAMES)
+
+#: The default free parameters of :class:`ExpectedWaveformModel` (its vector layout).
+DEFAULT_FREE = (
+    "density",
+    "height_mean",
+    "height_sd",
+    "crown_length_ratio",
+    "crown_radius_slope",
+    "favd",
+    "canopy_reflectance",
+    "ground_reflectance",
+    "ground_elevation",
+)
+
+#: Column of each field in a full vector.
+FIELD_INDEX = {name: i for i, name in enumerate(VECTOR_FIELDS)}
+_I = FIELD_INDEX
+_MIX = np.array([_I[name] for name in MIX_FIELDS], np.intp)
+
+
+def _bounds():
+    """Per field of the full vector: lower bound, whether it is allowed, upper bound."""
+    lower, upper = np.full(len(_I), -np.inf), np.full(len(_I), np.inf)
+    closed = np.ones(len(_I), bool)
+    positive = ("height_mean", "height_sd", "crown_length_ratio", "crown_radius_slope", "favd")
+    for name in (*positive, "understory_height"):
+        lower[_I[name]], closed[_I[name]] = 0.0, False
+    non_negative = ("density", "cohort2_fraction", "crown_radius_intercept", "understory_lai")
+    for name in (*non_negative, "canopy_reflectance", "ground_reflectance", *MIX_FIELDS):
+        lower[_I[name]] = 0.0
+    upper[_I["cohort2_fraction"]] = upper[_I["crown_length_ratio"]] = 1.0
+    return lower, closed, upper
+
+
+_LOWER, _CLOSED, _UPPER = _bounds()
+
+
+def physical_rows(v, family, truncation):
+    """True for full vectors ``v`` (n, len(VECTOR_FIELDS)) that describe a physical stand.
+
+    Parameters
+    ----------
+    v : array (n, len(VECTOR_FIELDS))
+        Full parameter vectors; NaN and infinite entries make a row invalid.
+    family : forward.stand_params.HeightFamily
+        Height family of both cohorts.
+    truncation : float (sd units)
+        Truncation of the ``truncnorm`` family.
+    """
+    ok = np.all(np.isfinite(v), axis=1)
+    v = np.where(np.isfinite(v), v, 1.0)
+    above = (v > _LOWER) | ((v == _LOWER) & _CLOSED)
+    ok &= np.all(above & (v <= _UPPER), axis=1)
+    ok &= np.abs(v[:, _MIX].sum(axis=1) - 1.0) < 1e-6
+    ok &= family.valid(v[:, _I["height_mean"]], v[:, _I["height_sd"]], truncation)
+    two = v[:, _I["cohort2_fraction"]] > 0
+    if np.any(two):  # cohort 2's distribution matters only where it has trees
+        mean, sd = v[:, _I["cohort2_height_mean"]], v[:, _I["cohort2_height_sd"]]
+        good = (mean > 0) & (sd > 0)
+        good &= family.valid(np.abs(mean) + 1e-9, np.abs(sd), truncation)
+        ok &= ~two | good
+    return ok
