@@ -41,7 +41,9 @@ class InversionSettings:
     shot_factor : float (DN)
         Shot-noise variance per unit signal, g.
     discrepancy : float
-        Model-discrepancy sd as a fraction of the signal (random tree arrangement).
+        Model-discrepancy sd as a fraction of the signal (random tree arrangement); 0.2
+        is the median per-bin spread of explicit realisations of a GEDI footprint around
+        the expected waveform.
     shape_pair : (str, str)
         Crown shapes mixed by ``cone_fraction``.
     priors : dict
@@ -58,7 +60,7 @@ class InversionSettings:
     margin_above_m: float = 10.0
     margin_below_m: float = 5.0
     shot_factor: float = 0.0
-    discrepancy: float = 0.0
+    discrepancy: float = 0.2
     shape_pair: tuple = ("cone", "ellipsoid")
     priors: dict = field(default_factory=dict)
     sampler: SamplerSettings = field(default_factory=SamplerSettings)

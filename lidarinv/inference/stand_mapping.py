@@ -15,27 +15,14 @@ Expectations over h use Gauss–Legendre quadrature on the bulk of each row's di
 import numpy as np
 
 from forward.crowns import CROWN_SHAPES
-from forward.expected import MIX_FIELDS
+from forward.expected import MIX_FIELDS, VECTOR_FIELDS
 from forward.stand_params import HEIGHT_DISTRIBUTIONS, StandParams
 
 #: top_height = height_mean + TOP_SDS·height_sd.
 TOP_SDS = 2.0
 
-#: Expected-model vector fields the mapping fills, in order.
-MODEL_FIELDS = (
-    "density",
-    "height_mean",
-    "height_sd",
-    "crown_length_ratio",
-    "crown_radius_intercept",
-    "crown_radius_slope",
-    "favd",
-    "understory_height",
-    "understory_lai",
-    "canopy_reflectance",
-    "ground_reflectance",
-    "ground_elevation",
-)
+#: Expected-model vector fields the mapping fills, in order (single cohort, no mix).
+MODEL_FIELDS = tuple(f for f in VECTOR_FIELDS if not f.startswith(("cohort2_", "mix_")))
 
 #: Scalar derived quantities reported per sample (units).
 DERIVED = {
