@@ -14,7 +14,7 @@ from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
 from .crowns import crown_interval
-from .footprint import DiscQuadrature, crown_crossings, truncation_radius
+from .footprint import CrownCrossings, DiscQuadrature, crown_crossings, truncation_radius
 from .gap import LayerGrid, add_uniform_layer, column_profiles
 from .pulse import layer_kernel
 from .scene import Ground, UniformUnderstory
@@ -48,6 +48,24 @@ class AccuracySettings:
     truncation_tolerance: float = 1e-3
     vertical_oversampling: int | None = None
     pulse_tolerance: float = 1e-9
+
+    def __post_init__(self):
+        for name in ("radial_nodes", "angular_nodes"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"{name} must be an integer ≥ 1, got {value!r}")
+        m = self.vertical_oversampling
+        if m is not None and (not isinstance(m, (int, np.integer)) or m < 1):
+            raise ValueError(f"vertical_oversampling must be None or an integer ≥ 1, got {m!r}")
+        if not 0.0 < self.truncation_tolerance < 1.0:
+            raise ValueError(
+                f"truncation_tolerance must lie in (0, 1), got {self.truncation_tolerance}"
+            )
+        if not 0.0 < self.pulse_tolerance < 0.5:
+            raise ValueError(
+                f"pulse_tolerance (pulse area left out per tail) must lie in (0, 0.5), "
+                f"got {self.pulse_tolerance}"
+            )
 
 
 @dataclass(frozen=True)
@@ -152,6 +170,8 @@ class WaveformSimulator:
             )
         if not np.isfinite(canopy_reflectance) or canopy_reflectance < 0:
             raise ValueError(f"canopy reflectance must be finite and ≥ 0, got {canopy_reflectance}")
+        if np.shape(center) != (2,):
+            raise ValueError(f"footprint centre must be two numbers (x, y) in m, got {center}")
         cx, cy = (float(c) for c in center)
         if not (np.isfinite(cx) and np.isfinite(cy)):
             raise ValueError(f"footprint centre must be finite, got {center}")
@@ -195,6 +215,10 @@ class WaveformSimulator:
         stand = prepared.stand
         reach = self.footprint_radius + prepared.max_radius
         near = np.asarray(prepared.tree.query_ball_point((cx, cy), reach), np.intp)
+        if near.size == 0:  # bare ground: nothing to intersect
+            empty, none = np.zeros(0), np.zeros(0, np.intp)
+            found = CrownCrossings(np.zeros((0, 2)), empty, none, none, empty)
+            return found, empty, empty, empty, empty
         dx, dy = stand.x[near] - cx, stand.y[near] - cy
         found = crown_crossings(
             self.quadrature,
@@ -209,6 +233,9 @@ class WaveformSimulator:
         z_low, z_high = crown_interval(
             stand.shape[index], found.rho, base, stand.crown_length[index]
         )
+        if not ground.is_flat:  # foliage below the local ground surface does not exist
+            local = ground.elevation(found.points[found.column, 0], found.points[found.column, 1])
+            z_low, z_high = np.maximum(z_low, local), np.maximum(z_high, local)
         return found, z_low, z_high, prepared.extinction[index], stand.favd[index]
 
     def _render(self, crossings, heights, ground, rho_v, understory, center):
@@ -251,7 +278,7 @@ class WaveformSimulator:
             profiles, grid = None, None
             edges, gap_edges = np.array([0.0, 1.0]), np.ones(2)
         ground_nodes, ground_weights = self._ground_deposit(found, profiles, grid, ground)
-        ground_gap = float(ground_weights.sum())
+        ground_gap = min(float(ground_weights.sum()), 1.0)  # a sum of masses: ≤ 1 up to rounding
         ground_part = ground.reflectance * self._ground_samples(
             ground_nodes, ground_weights, heights
         )
@@ -324,7 +351,16 @@ class WaveformSimulator:
             nodes = np.concatenate([nodes, lower * h, (lower + 1) * h])
             values = np.concatenate([values, -lost * (1 - frac), -lost * frac])
         unique, inverse = np.unique(np.round(nodes / h).astype(np.int64), return_inverse=True)
-        return unique * h, np.bincount(inverse, values)
+        weights = np.bincount(inverse, values)
+        # the Gaussian spread of ground heights and the crowned columns are two different
+        # discretisations, so a node can go slightly negative where crowns shade most of
+        # its ground: clip and rescale so the total (P̄ at the ground) stays exact
+        total = float(weights.sum())
+        if np.any(weights < 0):
+            weights = np.maximum(weights, 0.0)
+            positive = weights.sum()
+            weights *= max(total, 0.0) / positive if positive > 0 else 0.0
+        return unique * h, weights
 
     def _ground_samples(self, nodes, weights, heights):
         dz = self.instrument.bin_height

@@ -428,6 +428,10 @@ class ExpectedWaveformModel:
             depth = self._tree_depth(v, grid, cohorts)
             # interpolate the optical depth (not E[P]): E[P] stays in (0, 1] in dense stands
             depth = catmull_rom(depth, z, top / (nodes - 1), beyond=0.0)
+            # the cubic may overshoot by ~1e-5: keep the depth non-increasing with height
+            order = np.argsort(z, axis=1, kind="stable")
+            ranked = np.minimum.accumulate(np.take_along_axis(depth, order, axis=1), axis=1)
+            np.put_along_axis(depth, order, ranked, axis=1)
             gap = np.exp(-np.maximum(depth, 0.0))
         lai = v[:, _I["understory_lai"], None]
         if np.any(lai > 0):  # the uniform layer multiplies every column's gap

@@ -90,6 +90,10 @@ def _layer_integral(deposit, h):
     return np.maximum(running, 0.0, out=running)
 
 
+#: Work-array budget (elements) of one block of columns in :func:`column_profiles`.
+BLOCK_ELEMENTS = 1_000_000
+
+
 def column_profiles(column, z_low, z_high, extinction, density, grid, weights, keep_depth=False):
     """Footprint-mean gap and layer returns from weighted columns.
 
@@ -114,24 +118,65 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
     -----
     P̄ at an edge is 1 minus the layer returns above it, so canopy plus ground energy,
     ρv(1 − P̄(0)) + ρg·P̄(0), holds by construction.
+
+    Crowned columns are sorted by the top of their highest crown and processed in
+    blocks, each only over the layers between its lowest crown base and its highest
+    crown top: above them P = 1, below them nothing more is intercepted. So the work is
+    the number of crowned columns times the height span of their own crowns (not of the
+    whole canopy), and memory stays bounded by :data:`BLOCK_ELEMENTS` per block.
     """
     h = grid.thickness
     crowned, row = np.unique(column, return_inverse=True)
+    n_crowned = crowned.size
     omega = weights[crowned]
-    # optical thickness of each crowned column's layers, top layer first: (layers, columns)
-    dtau = _layer_integral(_deposit_kinks(row, z_low, z_high, extinction, grid, crowned.size), h)
-    depth = None
-    if keep_depth:
-        depth = np.zeros((crowned.size, grid.n_layers + 1))
-        depth[:, :-1] = np.cumsum(dtau, axis=0)[::-1].T
-    layer_loss = np.expm1(-dtau, out=dtau)
-    np.negative(layer_loss, out=layer_loss)  # 1 − exp(−Δτ), exact for thin layers
-    transmitted = np.cumprod(1.0 - layer_loss, axis=0)  # P at each layer's lower edge
-    layer_return = np.empty(grid.n_layers)
-    if grid.n_layers:
-        layer_return[0] = layer_loss[0] @ omega
-        layer_return[1:] = (transmitted[:-1] * layer_loss[1:]) @ omega
-    layer_return = layer_return[::-1]  # bottom layer first
+    col_top = np.full(n_crowned, -np.inf)
+    col_low = np.full(n_crowned, np.inf)
+    np.maximum.at(col_top, row, z_high)
+    np.minimum.at(col_low, row, z_low)
+    # layer range [k0, k1) of each column's crowns, counted from the grid bottom
+    k1 = np.clip(np.ceil((col_top - grid.bottom) / h), 0, grid.n_layers).astype(np.intp)
+    k0 = np.clip(np.floor((col_low - grid.bottom) / h), 0, grid.n_layers).astype(np.intp)
+    k0 = np.minimum(k0, k1)
+    order = np.argsort(k1, kind="stable")
+    rank = np.empty(n_crowned, np.intp)
+    rank[order] = np.arange(n_crowned)
+    pair_rank = rank[row]
+    pairs = np.argsort(pair_rank, kind="stable")  # crossings grouped by sorted column
+    sorted_row = pair_rank[pairs]
+    layer_return = np.zeros(grid.n_layers)
+    depth = np.zeros((n_crowned, grid.n_layers + 1)) if keep_depth else None
+    start = 0
+    while start < n_crowned:
+        # the longest run of sorted columns whose (columns × layer span) fits the budget
+        window = order[start : start + BLOCK_ELEMENTS]
+        low_run = np.minimum.accumulate(k0[window])
+        cost = np.arange(1, window.size + 1) * (k1[window] - low_run + 1)
+        stop = start + max(1, int(np.searchsorted(cost, BLOCK_ELEMENTS, side="right")))
+        block = order[start:stop]
+        first, last = np.searchsorted(sorted_row, [start, stop])
+        sel = pairs[first:last]
+        lo, hi = int(k0[block].min()), int(k1[block].max())
+        sub = LayerGrid(grid.bottom + lo * h, h, hi - lo)
+        loss, dtau = _block_losses(
+            pair_rank[sel] - start, z_low[sel], z_high[sel], extinction[sel], sub, block.size
+        )
+        transmitted = np.cumprod(1.0 - loss, axis=0)  # P at each layer's lower edge
+        sub_return = np.empty(sub.n_layers)
+        if sub.n_layers:
+            sub_return[0] = loss[0] @ omega[block]
+            sub_return[1:] = (transmitted[:-1] * loss[1:]) @ omega[block]
+        layer_return[lo:hi] += sub_return[::-1]
+        if keep_depth and sub.n_layers:
+            below = np.cumsum(dtau, axis=0)[::-1].T  # depth at the block's edges lo..hi−1
+            depth[block, lo:hi] = below
+            depth[block, :lo] = below[:, :1]
+        start = stop
+    intercepted = float(layer_return.sum())
+    if intercepted > 1.0:
+        # overlapping crowns covering the whole footprint: the partition-of-unity
+        # quadrature can weigh the columns slightly above 1; cap the intercepted fraction
+        # at 1 so that P̄(0) = 0 exactly and canopy + ground energy stay consistent
+        layer_return /= intercepted
     gap_edges = np.empty(grid.n_layers + 1)
     gap_edges[-1] = 0.0
     gap_edges[:-1] = np.cumsum(layer_return[::-1])[::-1]
@@ -152,6 +197,15 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
         column_depth=depth,
         crowned_columns=crowned,
     )
+
+
+def _block_losses(row, z_low, z_high, extinction, grid, n_rows):
+    """Layer losses 1 − exp(−Δτ) and optical thicknesses Δτ, top layer first."""
+    dtau = _layer_integral(
+        _deposit_kinks(row, z_low, z_high, extinction, grid, n_rows), grid.thickness
+    )
+    loss = -np.expm1(-dtau)  # exact for optically thin layers
+    return loss, dtau
 
 
 def add_uniform_layer(profiles, grid, extinction_per_m, foliage_per_m, top):

@@ -28,6 +28,8 @@ class Ground:
             raise ValueError(f"ground reflectance must be finite and ≥ 0, got {self.reflectance}")
         if not 0.0 <= self.slope_deg < 80.0:
             raise ValueError(f"ground slope must lie in [0, 80) degrees, got {self.slope_deg}")
+        if not np.isfinite(self.aspect_deg):
+            raise ValueError(f"ground aspect must be finite, got {self.aspect_deg} degrees")
 
     @property
     def is_flat(self) -> bool:

@@ -96,7 +96,12 @@ class Stand:
         """Build a stand from keyword arrays; ``shape`` may be names or one name for all."""
         n = np.size(columns["x"])
         shapes = np.broadcast_to(np.asarray(shape), (n,)) if np.ndim(shape) == 0 else shape
-        favd = np.broadcast_to(np.asarray(columns.pop("favd"), float), (n,))
+        favd = np.asarray(columns.pop("favd"), float)
+        if favd.ndim and favd.shape != (n,):
+            raise ValueError(
+                f"favd must be one number or one value per tree ({n}), got shape {favd.shape}"
+            )
+        favd = np.broadcast_to(favd, (n,))
         is_named = np.asarray(shapes).dtype.kind in "USO"
         codes = shape_codes(shapes) if is_named else np.asarray(shapes, np.int8)
         return cls(shape=codes, favd=favd.copy(), **columns)

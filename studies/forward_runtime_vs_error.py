@@ -78,8 +78,10 @@ def main():
         for tol in tolerances:
             for m in oversampling:
                 settings = fw.AccuracySettings(
-                    radial_nodes=radial, angular_nodes=angular,
-                    truncation_tolerance=tol, vertical_oversampling=m,
+                    radial_nodes=radial,
+                    angular_nodes=angular,
+                    truncation_tolerance=tol,
+                    vertical_oversampling=m,
                 )
                 sim = fw.WaveformSimulator(instrument, settings)
                 prepared = sim.prepare(stand)
@@ -87,19 +89,26 @@ def main():
                 for c, h, ref in zip(centers, heights, references):
                     wf = sim.simulate(prepared, center=c, heights=h)
                     errors.append(np.abs(wf.samples - ref.samples).sum() / ref.samples.sum())
-                seconds = time_per_footprint(sim, prepared, centers, heights, 3 if args.quick else 7)
-                rows.append({
-                    "radial_nodes": radial, "angular_nodes": angular,
-                    "truncation_tolerance": tol,
-                    "vertical_oversampling": sim.oversampling,
-                    "relative_l1_error": float(np.mean(errors)),
-                    "max_relative_l1_error": float(np.max(errors)),
-                    "ms_per_footprint": 1e3 * seconds,
-                    "is_default": settings == default,
-                })
-                print(f"{radial:>2}x{angular:<3} tol={tol:g} m={sim.oversampling}: "
-                      f"L1 {100 * rows[-1]['relative_l1_error']:.3f}% "
-                      f"in {rows[-1]['ms_per_footprint']:.2f} ms")
+                seconds = time_per_footprint(
+                    sim, prepared, centers, heights, 3 if args.quick else 7
+                )
+                rows.append(
+                    {
+                        "radial_nodes": radial,
+                        "angular_nodes": angular,
+                        "truncation_tolerance": tol,
+                        "vertical_oversampling": sim.oversampling,
+                        "relative_l1_error": float(np.mean(errors)),
+                        "max_relative_l1_error": float(np.max(errors)),
+                        "ms_per_footprint": 1e3 * seconds,
+                        "is_default": settings == default,
+                    }
+                )
+                print(
+                    f"{radial:>2}x{angular:<3} tol={tol:g} m={sim.oversampling}: "
+                    f"L1 {100 * rows[-1]['relative_l1_error']:.3f}% "
+                    f"in {rows[-1]['ms_per_footprint']:.2f} ms"
+                )
     pareto = []
     for row in sorted(rows, key=lambda r: r["ms_per_footprint"]):
         if not pareto or row["relative_l1_error"] < pareto[-1]["relative_l1_error"]:
@@ -109,12 +118,25 @@ def main():
     default_row = next((r for r in rows if r["is_default"]), None)
     meets = [r for r in rows if r["relative_l1_error"] <= 5e-3 and r["ms_per_footprint"] <= 5]
     summary = {
-        "scene": {"instrument": "gedi", "footprint_sigma_m": 5.5, "bin_ns": 1.0,
-                  "pulse_fwhm_ns": 15.0, "trees": stand.n_trees, "density_per_ha": 800,
-                  "heights_m": [10, 30], "footprints": n_fp},
-        "reference_settings": {k: getattr(reference_settings, k)
-                               for k in ("radial_nodes", "angular_nodes",
-                                         "truncation_tolerance", "vertical_oversampling")},
+        "scene": {
+            "instrument": "gedi",
+            "footprint_sigma_m": 5.5,
+            "bin_ns": 1.0,
+            "pulse_fwhm_ns": 15.0,
+            "trees": stand.n_trees,
+            "density_per_ha": 800,
+            "heights_m": [10, 30],
+            "footprints": n_fp,
+        },
+        "reference_settings": {
+            k: getattr(reference_settings, k)
+            for k in (
+                "radial_nodes",
+                "angular_nodes",
+                "truncation_tolerance",
+                "vertical_oversampling",
+            )
+        },
         "target": {"relative_l1_error": 5e-3, "ms_per_footprint": 5.0},
         "default": default_row,
         "settings_meeting_target": meets,
@@ -133,13 +155,28 @@ def plot(rows, pareto, default_row):
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 4.5))
-    ax.scatter([r["ms_per_footprint"] for r in rows],
-               [100 * r["relative_l1_error"] for r in rows], s=14, c="0.6", label="settings")
-    ax.plot([r["ms_per_footprint"] for r in pareto],
-            [100 * r["relative_l1_error"] for r in pareto], "-o", ms=4, label="Pareto front")
+    ax.scatter(
+        [r["ms_per_footprint"] for r in rows],
+        [100 * r["relative_l1_error"] for r in rows],
+        s=14,
+        c="0.6",
+        label="settings",
+    )
+    ax.plot(
+        [r["ms_per_footprint"] for r in pareto],
+        [100 * r["relative_l1_error"] for r in pareto],
+        "-o",
+        ms=4,
+        label="Pareto front",
+    )
     if default_row:
-        ax.plot(default_row["ms_per_footprint"], 100 * default_row["relative_l1_error"], "r*",
-                ms=14, label="default")
+        ax.plot(
+            default_row["ms_per_footprint"],
+            100 * default_row["relative_l1_error"],
+            "r*",
+            ms=14,
+            label="default",
+        )
     ax.axhline(0.5, ls=":", c="k")
     ax.axvline(5.0, ls=":", c="k")
     ax.set_xscale("log")

@@ -51,7 +51,6 @@ def test_slab_wider_than_footprint_follows_beer_lambert(gedi, k):
     alpha = inst.extinction_per_favd * u
     assert wf.ground_gap == pytest.approx(np.exp(-alpha * length), rel=1e-12)
 
-
     def sample(z):  # ρv α exp(−α(top − z')) on the slab, convolved with the pulse
         f = lambda zp: rho_v * alpha * np.exp(-alpha * (top - zp)) * inst.pulse.pdf(z - zp)
         return inst.bin_height * integrate.quad(f, top - length, top, epsabs=1e-13)[0]
