@@ -1,5 +1,7 @@
 """Property tests of the shot log-posterior: no NaN, −inf outside the support."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -59,3 +61,15 @@ def test_beyond_any_prior_bound_is_minus_inf(problem, index, beyond, low):
     p = space.free[index].prior
     x[0, index] = p.lower - beyond if low else p.upper + beyond
     assert problem.log_posterior.log_prob(x)[0] == -np.inf
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1.0, 1e9])
+def test_float32_and_extreme_gain_observations_give_numbers(scale):
+    obs = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], np.random.default_rng(9), explicit=False)
+    obs = replace(obs, samples=(obs.samples * scale).astype(np.float32))
+    problem = build_problem(obs)
+    rng = np.random.default_rng(1)
+    x = problem.space.sample_prior(rng, 64)
+    values = problem.log_posterior.log_prob(x)
+    assert not np.any(np.isnan(values)) and np.any(np.isfinite(values))
+    assert problem.space.by_name["gain"].prior.upper > 1e-3 * scale
