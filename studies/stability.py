@@ -92,6 +92,13 @@ FIXES = [
         "top, each over its own layer span",
         "test": "test_blocked_column_profiles_equal_one_block",
     },
+    {
+        "input": "expected model, dense or tall stands (e.g. 2000–30000 stems/ha, 40 m)",
+        "symptom": "E[P] from gap() decreased with height by up to 1.7e-5 (216 of the "
+        "quick sweep's rows): Catmull–Rom overshoot of the interpolated optical depth",
+        "fix": "expected._gap keeps the interpolated depth non-increasing with height",
+        "test": "test_expected_gap_is_monotone_in_height",
+    },
 ]
 
 
