@@ -277,8 +277,8 @@ class WaveformSimulator:
         else:
             profiles, grid = None, None
             edges, gap_edges = np.array([0.0, 1.0]), np.ones(2)
-        ground_nodes, ground_weights = self._ground_deposit(found, profiles, grid, ground)
-        ground_gap = min(float(ground_weights.sum()), 1.0)  # a sum of masses: ≤ 1 up to rounding
+        ground_nodes, ground_weights = self._ground_deposit(found, profiles, ground)
+        ground_gap = float(gap_edges[0])  # P̄ at the ground: all foliage lies above it
         ground_part = ground.reflectance * self._ground_samples(
             ground_nodes, ground_weights, heights
         )
@@ -322,7 +322,7 @@ class WaveformSimulator:
             out[j_first : j_last + 1] = full[start::m][: j_last - j_first + 1]
         return out
 
-    def _ground_deposit(self, found, profiles, grid, ground):
+    def _ground_deposit(self, found, profiles, ground):
         """Ground heights (m) and their weights ∫w·P dA at the ground."""
         # all foliage lies above the ground, so P̄ at the ground is P̄ at the lowest edge
         at_ground = 1.0 if profiles is None else float(profiles.gap_edges[0])
@@ -336,30 +336,28 @@ class WaveformSimulator:
         mass = np.diff(ndtr((np.append(k - 0.5, k[-1] + 0.5) * h) / spread))
         nodes, values = k * h, mass / mass.sum()
         if profiles is not None and found.column.size:
-            # remove what the crowns intercept above each crowned column's own ground
+            # remove what the crowns intercept above each crowned column's own ground:
+            # crowns are clipped there, so that is the column's whole optical depth (an
+            # interpolation inside the ground's layer would miss the foliage above it)
             cols = profiles.crowned_columns
             z_ground = ground.elevation(found.points[cols, 0], found.points[cols, 1])
-            f = np.clip((z_ground - grid.bottom) / grid.thickness, 0, grid.n_layers)
-            i = np.minimum(np.floor(f).astype(np.intp), max(grid.n_layers - 1, 0))
-            rows = np.arange(cols.size)
-            depth = profiles.column_depth
-            tau = depth[rows, i] + (f - i) * (depth[rows, i + 1] - depth[rows, i])
-            lost = found.weights[cols] * -np.expm1(-tau)
+            lost = found.weights[cols] * -np.expm1(-profiles.column_depth[:, 0])
             g = z_ground / h
             lower = np.floor(g)
             frac = g - lower
             nodes = np.concatenate([nodes, lower * h, (lower + 1) * h])
             values = np.concatenate([values, -lost * (1 - frac), -lost * frac])
         unique, inverse = np.unique(np.round(nodes / h).astype(np.int64), return_inverse=True)
-        weights = np.bincount(inverse, values)
+        weights = np.maximum(np.bincount(inverse, values), 0.0)
         # the Gaussian spread of ground heights and the crowned columns are two different
         # discretisations, so a node can go slightly negative where crowns shade most of
-        # its ground: clip and rescale so the total (P̄ at the ground) stays exact
-        total = float(weights.sum())
-        if np.any(weights < 0):
-            weights = np.maximum(weights, 0.0)
-            positive = weights.sum()
-            weights *= max(total, 0.0) / positive if positive > 0 else 0.0
+        # its ground: clip, and rescale so that the weights sum to P̄ at the ground exactly
+        # (the canopy energy is ρv(1 − P̄ at the lowest edge): the two stay consistent)
+        positive = float(weights.sum())
+        if positive > 0:
+            weights *= at_ground / positive
+        else:
+            weights[np.argmin(np.abs(unique))] = at_ground
         return unique * h, weights
 
     def _ground_samples(self, nodes, weights, heights):

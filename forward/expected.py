@@ -108,8 +108,25 @@ class ModelSettings:
     backend: str = "auto"
 
 
+#: Largest undershoot below zero accepted from the fast grid path, relative to the row's
+#: canopy energy; rows beyond it are recomputed on the per-edge path.
+GRID_UNDERSHOOT = 1e-5
+
 #: Settings taken as converged (the reference of the benchmark and the convergence test).
 CONVERGED = ModelSettings(radial_nodes=48, height_nodes=1024, tail=1e-9, depth_nodes=None)
+
+
+def _clip_keeping_energy(canopy, rows):
+    """Zero the negative samples of ``rows`` (bool, n) and rescale the rest so that each
+    row keeps its sum: non-negative samples and exact energy (a change of the order of
+    the undershoot, far below the model error)."""
+    if rows.any():
+        part = canopy[rows]
+        positive = np.clip(part, 0.0, None)
+        total = positive.sum(axis=1)
+        scale = np.where(total > 0, part.sum(axis=1) / np.where(total > 0, total, 1.0), 0.0)
+        canopy[rows] = positive * np.clip(scale, 0.0, None)[:, None]
+    return canopy
 
 
 @dataclass(frozen=True)
@@ -323,9 +340,37 @@ class ExpectedWaveformModel:
         """Canopy waveforms before ρv (n, n_bins) and E[P(0)] (n,)."""
         cohorts = self._cohorts(v)
         top = self._top(cohorts)
-        if self._per_cell is None or np.any(v[:, _I["understory_lai"]] > 0):
+        if self._per_cell is None:
             return self._canopy_edges(v, cohorts, top)
-        return self._canopy_grid(v, cohorts, top)
+        canopy, gap0 = self._canopy_grid(v, cohorts, top)
+        # the grid's cubic undershoots slightly below zero (~1e-8 of the canopy energy in
+        # typical stands); rows where it undershoots by more, a canopy much thinner than a
+        # grid cell, take the per-edge path, whose depth is monotone
+        lowest = canopy.min(axis=1)
+        redo = lowest < -GRID_UNDERSHOOT * np.maximum(1.0 - gap0, np.finfo(float).tiny)
+        if redo.any():
+            again = v[redo]
+            cohorts = self._cohorts(again)
+            canopy[redo], gap0[redo] = self._canopy_edges(again, cohorts, self._top(cohorts))
+        return _clip_keeping_energy(canopy, lowest < 0), gap0
+
+    def _add_understory(self, v, z0, lost, interp, layers_to_samples, local):
+        """The grid path's samples (n, bins) and E[P(0)] with a uniform understory.
+
+        P = P_trees·P_u differs from P_trees only below the understory top: there the
+        trees' E[P] is read at the fine-layer edges from the same grid interpolation, and
+        each layer's energy becomes Δ(P_trees·P_u) instead of ΔP_trees. P_u is exact at
+        the edges, so its kink at the layer top costs no accuracy.
+        """
+        layer = self.layer_height
+        hu = np.where(v[:, _I["understory_lai"]] > 0, v[:, _I["understory_height"]], 0.0)
+        edges = min(int(np.max(np.ceil((hu - z0) / layer))) + 2, interp.shape[1])
+        z = np.maximum(z0[:, None] + layer * np.arange(edges), 0.0)
+        trees = 1.0 + lost @ interp[:, :edges]
+        both = trees * np.exp(-self._understory_depth(v, z))
+        change = np.diff(both, axis=1) - np.diff(trees, axis=1)
+        local = local + change @ layers_to_samples[: edges - 1]
+        return local, (1.0 + lost[:, 0]) * np.exp(-self._understory_depth(v, z[:, :1]))[:, 0]
 
     def _canopy_edges(self, v, cohorts, top):
         """E[P] at every fine-layer edge, then the layer kernel as a matrix product."""
@@ -355,13 +400,19 @@ class ExpectedWaveformModel:
         # up to the tallest tree, but no further than three cells beyond the last layer
         # that reaches the window (a taller canopy only needs E[P] below that)
         reach = np.max(np.ceil((self._edges[-1] - g - z0) / step)) + 3
-        nodes = max(2, int(min(np.max(np.ceil((top - z0) / step)), reach)) + 1)
+        understory = v[:, _I["understory_lai"]] > 0
+        hu = np.where(understory, v[:, _I["understory_height"]], 0.0)
+        span = np.max(np.ceil((np.maximum(top, hu) - z0) / step))
+        nodes = max(2, int(min(span, reach)) + 1)
         z = z0[:, None] + step * np.arange(nodes)
         np.maximum(z, 0.0, out=z)
         # E[P] − 1 (zero above the trees): a bare row gives exactly zero
         lost = np.expm1(-self._tree_depth(v, z, cohorts))
-        matrix, first = self._grid_operator(nodes)
+        matrix, first, interp, layers_to_samples = self._grid_operator(nodes)
         local = lost @ matrix
+        gap0 = 1.0 + lost[:, 0]
+        if understory.any():
+            local, gap0 = self._add_understory(v, z0, lost, interp, layers_to_samples, local)
         # row r's sample k lands in bin shift_r + first + k; bins outside the window go to
         # two spare columns (flat indices: much faster than a 2-D scatter)
         width = self.heights.size + 2
@@ -370,7 +421,7 @@ class ExpectedWaveformModel:
         cols += (1 + width * np.arange(n))[:, None]
         out = np.zeros((n, width))
         out.ravel()[cols.ravel()] = local.ravel()
-        return out[:, 1:-1], 1.0 + lost[:, 0]
+        return out[:, 1:-1], gap0
 
     def _grid_operator(self, nodes):
         """:func:`forward.expected_tables.grid_operator` for ``nodes``, cached."""
@@ -419,6 +470,13 @@ class ExpectedWaveformModel:
         """E[P] at heights z (n, e) above the ground, for full vectors v (n, …)."""
         z = np.maximum(z, 0.0)
         cohorts = self._cohorts(v) if cohorts is None else cohorts
+        gap = self._tree_gap(v, z, cohorts)
+        if np.any(v[:, _I["understory_lai"]] > 0):  # it multiplies every column's gap
+            gap = gap * np.exp(-self._understory_depth(v, z))
+        return gap
+
+    def _tree_gap(self, v, z, cohorts):
+        """E[P] of the trees alone at heights z ≥ 0 (n, e)."""
         nodes = self.settings.depth_nodes
         if nodes is None:
             gap = np.exp(-self._tree_depth(v, z, cohorts))
@@ -433,11 +491,12 @@ class ExpectedWaveformModel:
             ranked = np.minimum.accumulate(np.take_along_axis(depth, order, axis=1), axis=1)
             np.put_along_axis(depth, order, ranked, axis=1)
             gap = np.exp(-np.maximum(depth, 0.0))
-        lai = v[:, _I["understory_lai"], None]
-        if np.any(lai > 0):  # the uniform layer multiplies every column's gap
-            hu = v[:, _I["understory_height"], None]
-            gap = gap * np.exp(-self._kappa * lai * np.clip(hu - z, 0.0, None) / hu)
         return gap
+
+    def _understory_depth(self, v, z):
+        """Optical depth of the uniform understory layer above heights z ≥ 0 (n, e)."""
+        lai, hu = v[:, _I["understory_lai"], None], v[:, _I["understory_height"], None]
+        return self._kappa * lai * np.clip(hu - z, 0.0, None) / hu
 
     def _tree_depth(self, v, z, cohorts):
         """λ·E[∫(1 − e^{−κuℓ}) dA] at heights z ≥ 0 (n, e), for full vectors v (n, …).

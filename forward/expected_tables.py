@@ -280,25 +280,43 @@ def catmull_rom_matrix(nodes, per_cell):
     return pad @ interp
 
 
+def layer_operator(layers, oversampling, q_min, taps):
+    """Matrix from the energies of ``layers`` fine layers, the first starting on a bin
+    edge, to waveform samples: the layer kernel ``(q_min, taps)`` of
+    :func:`forward.pulse.layer_kernel` with ``oversampling`` layers per bin.
+
+    Returns
+    -------
+    matrix : array (layers, bins)
+        Column k is the sample ``first + k`` bins above the first layer's bin edge.
+    first : int
+    """
+    m = oversampling
+    first = -((-q_min) // m)  # ceil(q_min / m)
+    last = (q_min + taps.size - 1 + layers - 1) // m
+    q = np.arange(first, last + 1)[None, :] * m - np.arange(layers)[:, None] - q_min
+    inside = (q >= 0) & (q < taps.size)
+    return np.where(inside, taps[np.clip(q, 0, taps.size - 1)], 0.0), first
+
+
 def grid_operator(nodes, per_cell, oversampling, q_min, taps):
     """Matrix from E[P] − 1 on a depth grid to waveform samples, and its first bin.
 
     The grid has ``nodes`` points ``per_cell`` fine layers apart, the first on a bin edge;
     the samples are those of :func:`catmull_rom_matrix` interpolation to every layer edge,
-    layer energies P(top) − P(bottom), and the layer kernel ``(q_min, taps)`` of
-    :func:`forward.pulse.layer_kernel` with ``oversampling`` layers per bin.
+    layer energies P(top) − P(bottom), and :func:`layer_operator`.
 
     Returns
     -------
     matrix : array (nodes, bins)
         Column k is the sample ``first + k`` bins above the grid's first bin edge.
     first : int
+    interp : array (nodes, layers + 1)
+        The interpolation matrix (values at the layer edges).
+    layers_to_samples : array (layers, bins)
+        The :func:`layer_operator` of the grid's layers.
     """
     interp = catmull_rom_matrix(nodes, per_cell)
     energy = interp[:, 1:] - interp[:, :-1]  # (nodes, layers)
-    layers, m = energy.shape[1], oversampling
-    first = -((-q_min) // m)  # ceil(q_min / m)
-    last = (q_min + taps.size - 1 + layers - 1) // m
-    q = np.arange(first, last + 1)[None, :] * m - np.arange(layers)[:, None] - q_min
-    inside = (q >= 0) & (q < taps.size)
-    return energy @ np.where(inside, taps[np.clip(q, 0, taps.size - 1)], 0.0), first
+    kernel, first = layer_operator(energy.shape[1], oversampling, q_min, taps)
+    return energy @ kernel, first, interp, kernel

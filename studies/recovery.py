@@ -11,7 +11,7 @@ bias and RMSE of the posterior median, and the same errors of the direct metrics
 gap-based cover).
 
     python studies/recovery.py [--n 200] [--max-steps 4000] [--workers 2]
-                               [--inverse-crime] [--discrepancy 0.0] [--seed 1]
+                               [--inverse-crime] [--discrepancy 0.2] [--seed 1]
 
 Writes studies/output/recovery[_inverse_crime]/{summary.json,shots.json,*.png}.
 """
@@ -167,7 +167,7 @@ def main():
     parser.add_argument("--max-steps", type=int, default=4000)
     parser.add_argument("--workers", type=int, default=os.cpu_count())
     parser.add_argument("--inverse-crime", action="store_true")
-    parser.add_argument("--discrepancy", type=float, default=0.0)
+    parser.add_argument("--discrepancy", type=float, default=InversionSettings().discrepancy)
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     settings = InversionSettings(discrepancy=args.discrepancy)

@@ -57,9 +57,22 @@ FIXES = [
     },
     {
         "input": "bare ground on a 40° slope",
-        "symptom": "ground_gap = 1 + 2e-16 (> 1)",
-        "fix": "ground_gap is clipped at 1 (a sum of masses)",
-        "test": "test_windows_cut_the_return_without_changing_it",
+        "symptom": "ground_gap = 1 + 2e-16 (> 1); with ρv = 1e4 the sum of the ground-height "
+        "masses (1 − 2e-16) broke energy by 2e-12",
+        "fix": "ground_gap is P̄ at the lowest layer edge, and the sloped ground's weights are "
+        "rescaled to sum to it",
+        "test": "test_windows_cut_the_return_without_changing_it, "
+        "test_sloped_ground_keeps_energy_exactly",
+    },
+    {
+        "input": "wide, sparse crown clipped by sloped ground (cylinder Rc = 17.8 m, FAVD 1e-6, "
+        "h = 0.56 m, 15° slope, σf = 1 m)",
+        "symptom": "canopy + ground energy exceeded ρv(1 − P̄) + ρg·P̄ by 5.8e-10 (0.3 % of "
+        "the canopy energy): the depth at each column's ground was interpolated inside "
+        "its layer, missing the foliage between the ground and the layer top",
+        "fix": "engine._ground_deposit takes each crowned column's whole optical depth (its "
+        "crowns are clipped at its ground)",
+        "test": "test_sloped_ground_keeps_energy_exactly",
     },
     {
         "input": "AccuracySettings(pulse_tolerance=0) / (pulse_tolerance=0.7) / "
@@ -98,6 +111,17 @@ FIXES = [
         "quick sweep's rows): Catmull–Rom overshoot of the interpolated optical depth",
         "fix": "expected._gap keeps the interpolated depth non-increasing with height",
         "test": "test_expected_gap_is_monotone_in_height",
+    },
+    {
+        "input": "expected model on its fast grid path: tiny (h = 0.5 m) or tall sparse "
+        "stands, and every typical stand at the 1e-8 level",
+        "symptom": "negative samples down to −7e-6 of the row's energy (94 of the quick "
+        "sweep's rows, once understory rows stopped sending the batch to the per-edge "
+        "path): Catmull–Rom undershoot",
+        "fix": "rows undershooting by > 1e-5 of their canopy energy take the per-edge path; "
+        "the others are clipped at zero and rescaled to keep their energy",
+        "test": "test_expected_model_invariants, "
+        "test_understory_on_the_fast_grid_path_matches_the_converged_model",
     },
 ]
 

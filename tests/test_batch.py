@@ -225,3 +225,21 @@ def test_cli_batch(tmp_path, capsys):
     priors = ["--priors", str(tmp_path / "missing.toml")]
     assert main(["batch", str(path), "-o", str(out), *priors]) == 2
     assert "priors" in capsys.readouterr().err
+
+
+def test_cli_batch_on_a_dask_scheduler(tmp_path, capsys):
+    distributed = pytest.importorskip("distributed")
+    from lidarinv.batch import connect_dask
+
+    path = tmp_path / "obs.h5"
+    write_observations(path, _observations(4))
+    out = tmp_path / "sched.h5"
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:  # fmt: skip
+        args = ["batch", str(path), "-o", str(out), "--scheduler", cluster.scheduler_address,
+                "--no-progress", "--invert", "lidarinv.batch.fake:fake_invert"]  # fmt: skip
+        assert main(args) == 0
+    assert "4 done, 0 failed, 0 skipped" in capsys.readouterr().out
+    assert len(_csv(tmp_path / "sched.csv")) == 4
+    with pytest.raises(ValueError, match=r"no Dask scheduler answered at tcp://127\.0\.0\.1:9"):
+        connect_dask("tcp://127.0.0.1:9", timeout=1.0)

@@ -119,6 +119,25 @@ def test_quadrature_converges_to_reference():
     assert error() < 2e-3  # the defaults
 
 
+def test_understory_on_the_fast_grid_path_matches_the_converged_model():
+    # the understory is added to the grid path layer by layer below its top; a layer
+    # taller than some trees and a zero-LAI row are in the batch
+    params = MC_CASES["understory"]
+    sim = fw.WaveformSimulator(INSTRUMENT)
+    heights = sim.default_heights(30.0, -3.0)
+    free = (*DEFAULT_FREE, "understory_height", "understory_lai")
+    reference = ExpectedWaveformModel(INSTRUMENT, heights, params, free, settings=CONVERGED)
+    theta = _batch(reference, np.random.default_rng(8))
+    names = reference.parameter_names
+    theta[0, names.index("understory_lai")] = 0.0
+    theta[1, names.index("understory_height")] = 12.0
+    ref = reference.evaluate(theta)
+    fast = ExpectedWaveformModel(INSTRUMENT, heights, params, free).evaluate(theta)
+    error = np.abs(fast.samples - ref.samples).sum(1) / ref.samples.sum(1)
+    assert np.max(error) < 1e-3, error
+    np.testing.assert_allclose(fast.gap_ground, ref.gap_ground, rtol=1e-4)
+
+
 def test_batch_shape_and_invalid_rows_are_masked_not_raised():
     params = MC_CASES["cone"]
     heights = fw.WaveformSimulator(INSTRUMENT).default_heights(30.0)

@@ -322,13 +322,22 @@ def make_backend(executor, workers, invert, settings):
     )
 
 
-def connect_dask(address: str):
+def connect_dask(address: str, timeout: float = 20.0):
     """A ``dask.distributed.Client`` connected to ``address`` (dask is optional).
+
+    Parameters
+    ----------
+    address : str
+        The scheduler, e.g. ``tcp://host:8786``.
+    timeout : float (s)
+        How long to try to reach it.
 
     Raises
     ------
     ImportError
         With installation advice when ``dask.distributed`` is missing.
+    ValueError
+        When no scheduler answers at ``address`` within ``timeout``.
     """
     try:
         from distributed import Client
@@ -336,4 +345,9 @@ def connect_dask(address: str):
         raise ImportError(
             "running on a Dask cluster needs dask.distributed: pip install 'lidarinv[distributed]'"
         ) from error
-    return Client(address)
+    try:
+        return Client(address, timeout=timeout)
+    except (OSError, TimeoutError) as error:
+        raise ValueError(
+            f"no Dask scheduler answered at {address} within {timeout:g} s ({error})"
+        ) from None
