@@ -341,7 +341,7 @@ class WaveformSimulator:
             # interpolation inside the ground's layer would miss the foliage above it)
             cols = profiles.crowned_columns
             z_ground = ground.elevation(found.points[cols, 0], found.points[cols, 1])
-            lost = found.weights[cols] * -np.expm1(-profiles.column_depth[:, 0])
+            lost = found.weights[cols] * -np.expm1(-profiles.column_depth)
             g = z_ground / h
             lower = np.floor(g)
             frac = g - lower

@@ -46,8 +46,9 @@ class ColumnProfiles:
         Footprint-weighted crown volume in each layer per unit ground area (m³/m²).
     foliage_area : array (n_layers)
         Footprint-weighted one-sided foliage area in each layer per ground area (m²/m²).
-    column_depth : array (n_crowned, n_layers + 1)
-        Optical depth of each crowned column at the edges (kept for sloped ground).
+    column_depth : array (n_crowned) or None
+        Optical depth of each crowned column from its top to the ground (kept for sloped
+        ground, where the ground under each column lies at its own height).
     crowned_columns : int array
         Column indices of the rows of ``column_depth``.
     """
@@ -112,7 +113,7 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
         Footprint weight of every column (index by ``column``); columns that cross no
         crown have P = 1 and need no weight.
     keep_depth : bool
-        Keep each crowned column's optical depth at the edges (needed on sloped ground).
+        Keep each crowned column's whole optical depth (needed on sloped ground).
 
     Notes
     -----
@@ -144,7 +145,6 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
     pairs = np.argsort(pair_rank, kind="stable")  # crossings grouped by sorted column
     sorted_row = pair_rank[pairs]
     layer_return = np.zeros(grid.n_layers)
-    depth = np.zeros((n_crowned, grid.n_layers + 1)) if keep_depth else None
     start = 0
     while start < n_crowned:
         # the longest run of sorted columns whose (columns × layer span) fits the budget
@@ -157,7 +157,7 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
         sel = pairs[first:last]
         lo, hi = int(k0[block].min()), int(k1[block].max())
         sub = LayerGrid(grid.bottom + lo * h, h, hi - lo)
-        loss, dtau = _block_losses(
+        loss = _block_losses(
             pair_rank[sel] - start, z_low[sel], z_high[sel], extinction[sel], sub, block.size
         )
         transmitted = np.cumprod(1.0 - loss, axis=0)  # P at each layer's lower edge
@@ -166,10 +166,6 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
             sub_return[0] = loss[0] @ omega[block]
             sub_return[1:] = (transmitted[:-1] * loss[1:]) @ omega[block]
         layer_return[lo:hi] += sub_return[::-1]
-        if keep_depth and sub.n_layers:
-            below = np.cumsum(dtau, axis=0)[::-1].T  # depth at the block's edges lo..hi−1
-            depth[block, lo:hi] = below
-            depth[block, :lo] = below[:, :1]
         start = stop
     intercepted = float(layer_return.sum())
     if intercepted > 1.0:
@@ -182,6 +178,10 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
     gap_edges[:-1] = np.cumsum(layer_return[::-1])[::-1]
     gap_edges = np.clip(1.0 - gap_edges, 0.0, 1.0)
 
+    # a column's whole depth is the sum of its crossings' k·G·Ω·u × path length
+    depth = (
+        np.bincount(row, extinction * (z_high - z_low), minlength=n_crowned) if keep_depth else None
+    )
     # crown volume and foliage are linear in the crossings: one column for all crossings
     single = np.zeros_like(row)
     pair_weight = weights[column]
@@ -200,12 +200,11 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
 
 
 def _block_losses(row, z_low, z_high, extinction, grid, n_rows):
-    """Layer losses 1 − exp(−Δτ) and optical thicknesses Δτ, top layer first."""
+    """Layer losses 1 − exp(−Δτ) of each column, top layer first."""
     dtau = _layer_integral(
         _deposit_kinks(row, z_low, z_high, extinction, grid, n_rows), grid.thickness
     )
-    loss = -np.expm1(-dtau)  # exact for optically thin layers
-    return loss, dtau
+    return -np.expm1(-dtau)  # exact for optically thin layers
 
 
 def add_uniform_layer(profiles, grid, extinction_per_m, foliage_per_m, top):
@@ -231,6 +230,6 @@ def add_uniform_layer(profiles, grid, extinction_per_m, foliage_per_m, top):
         layer_return=layer_return,
         crown_volume=profiles.crown_volume,
         foliage_area=foliage,
-        column_depth=None if profiles.column_depth is None else profiles.column_depth + depth,
+        column_depth=None if profiles.column_depth is None else profiles.column_depth + depth[0],
         crowned_columns=profiles.crowned_columns,
     )
