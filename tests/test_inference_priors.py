@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
+from lidarinv.inference import coordinates
 from lidarinv.inference.parameters import default_space, read_priors_file
 from lidarinv.inference.priors import (
     LogUniform,
@@ -106,3 +107,55 @@ def test_priors_file_errors_name_the_problem(tmp_path, text, message):
     path.write_text(text)
     with pytest.raises(ValueError, match=message):
         read_priors_file(path)
+
+
+def test_joint_cover_pai_coordinates_round_trip_with_exact_jacobian():
+    rng = np.random.default_rng(4)
+    cover = rng.uniform(0.001, 0.99, 200)
+    pai = np.exp(rng.uniform(np.log(0.01), np.log(15.0), 200))
+    s, t = coordinates.from_cover_pai(cover, pai)
+    back_cover, back_pai, log_jac = coordinates.to_cover_pai(s, t)
+    np.testing.assert_allclose(back_cover, cover, rtol=1e-12)
+    np.testing.assert_allclose(back_pai, pai, rtol=1e-12)
+    h = 1e-6
+    d = {
+        (k, i): (coordinates.to_cover_pai(s + h * (i == 0), t + h * (i == 1))[k]
+                 - coordinates.to_cover_pai(s - h * (i == 0), t - h * (i == 1))[k]) / (2 * h)
+        for k in (0, 1) for i in (0, 1)
+    }  # fmt: skip
+    det = d[0, 0] * d[1, 1] - d[0, 1] * d[1, 0]
+    np.testing.assert_allclose(log_jac, np.log(np.abs(det)), atol=1e-6)
+    assert np.all(np.isnan(coordinates.from_cover_pai(np.array([0.0, 1.0, 0.5]), 1.0)[0][:2]))
+
+
+def test_joint_coordinates_keep_the_cover_pai_prior():
+    """The prior on cover and PAI, carried to (s, t) with the Jacobian, still integrates
+    to one: only the sampling coordinates change, not the posterior."""
+    s, t = np.linspace(-14.0, 5.0, 1500), np.linspace(-9.0, 9.0, 1500)
+    grid_s, grid_t = np.meshgrid(s, t, indexing="ij")
+    cover, pai, log_jac = coordinates.to_cover_pai(grid_s, grid_t)
+    space = default_space(_nuisance())
+    density = np.exp(
+        space.by_name["cover"].prior.log_pdf(cover) + space.by_name["pai"].prior.log_pdf(pai)
+        + log_jac
+    )  # fmt: skip
+    total = np.trapezoid(np.trapezoid(density, t, axis=1), s)
+    assert total == pytest.approx(1.0, abs=1e-3)
+
+
+def test_parameter_space_samples_cover_and_pai_jointly_only_when_both_are_free():
+    space = default_space(_nuisance())
+    rng = np.random.default_rng(8)
+    x = space.sample_prior(rng, 50)
+    u = space.to_unbounded(x)
+    back, _ = space.from_unbounded(u)
+    np.testing.assert_allclose(back, x, rtol=1e-10)
+    c, a = space.names.index("cover"), space.names.index("pai")
+    np.testing.assert_allclose(
+        u[:, [c, a]], np.column_stack(coordinates.from_cover_pai(x[:, c], x[:, a]))
+    )
+    per_parameter = default_space(_nuisance()).with_changes({"cover": {"fixed": 0.5}})
+    x = per_parameter.sample_prior(rng, 5)
+    u = per_parameter.to_unbounded(x)
+    i = per_parameter.names.index("pai")
+    np.testing.assert_allclose(u[:, i], per_parameter.by_name["pai"].prior.to_unbounded(x[:, i]))

@@ -11,6 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from . import coordinates
 from .priors import LogUniform, TruncatedLogNormal, Uniform, make_prior
 
 
@@ -85,10 +86,19 @@ DEFAULT_RHO_RATIO_PRIOR = TruncatedLogNormal(1.5, 0.3, 0.3, 5.0)
 
 
 class ParameterSpace:
-    """An ordered set of :class:`Parameter`; the free ones form the sampled vector."""
+    """An ordered set of :class:`Parameter`; the free ones form the sampled vector.
 
-    def __init__(self, parameters):
+    Parameters
+    ----------
+    parameters : iterable of Parameter
+    joint_cover_pai : bool
+        When both ``cover`` and ``pai`` are free, sample them in the joint coordinates of
+        :mod:`.coordinates` (the posterior is unchanged; only its sampling coordinates).
+    """
+
+    def __init__(self, parameters, joint_cover_pai=True):
         self.parameters = tuple(parameters)
+        self.joint_cover_pai = bool(joint_cover_pai)
         names = [p.name for p in self.parameters]
         if len(set(names)) != len(names):
             raise ValueError(f"duplicate parameter names in {names}")
@@ -97,6 +107,12 @@ class ParameterSpace:
         self.names = tuple(p.name for p in self.free)
         if not self.free:
             raise ValueError("every parameter is fixed; nothing to infer")
+        both = "cover" in self.names and "pai" in self.names
+        self._joint = (
+            (self.names.index("cover"), self.names.index("pai"))
+            if both and joint_cover_pai
+            else None
+        )
 
     @property
     def ndim(self) -> int:
@@ -127,15 +143,25 @@ class ParameterSpace:
         u = np.atleast_2d(np.asarray(u, float))
         x = np.empty_like(u)
         log_jac = np.zeros(u.shape[0])
+        joint = () if self._joint is None else self._joint
         for i, p in enumerate(self.free):
-            x[:, i], lj = p.prior.from_unbounded(u[:, i])
+            if i not in joint:
+                x[:, i], lj = p.prior.from_unbounded(u[:, i])
+                log_jac += lj
+        if joint:
+            c, a = joint
+            x[:, c], x[:, a], lj = coordinates.to_cover_pai(u[:, c], u[:, a])
             log_jac += lj
         return x, log_jac
 
     def to_unbounded(self, x):
         x = np.atleast_2d(np.asarray(x, float))
         with np.errstate(divide="ignore"):
-            return np.column_stack([p.prior.to_unbounded(x[:, i]) for i, p in enumerate(self.free)])
+            u = np.column_stack([p.prior.to_unbounded(x[:, i]) for i, p in enumerate(self.free)])
+        if self._joint is not None:
+            c, a = self._joint
+            u[:, c], u[:, a] = coordinates.from_cover_pai(x[:, c], x[:, a])
+        return u
 
     def sample_prior(self, rng, size) -> np.ndarray:
         return np.column_stack([p.prior.sample(rng, size) for p in self.free])
@@ -149,7 +175,7 @@ class ParameterSpace:
         for p in self.parameters:
             change = changes.get(p.name, {})
             out.append(replace(p, **change) if change else p)
-        return ParameterSpace(out)
+        return ParameterSpace(out, self.joint_cover_pai)
 
     def describe(self) -> list:
         return [
