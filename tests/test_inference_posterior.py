@@ -72,6 +72,21 @@ def test_invalid_and_extreme_parameters_give_minus_inf_never_nan(problem, shot):
     assert not np.any(np.isnan(values))
 
 
+def test_favd_range_excludes_only_rows_outside_it(shot, tmp_path):
+    path = tmp_path / "priors.toml"
+    path.write_text("[favd]\nlower = 0.05\nupper = 3.0\n[rho_ratio]\nfixed = 1.5\n")
+    bounded = InversionSettings.from_priors_file(path)
+    assert bounded.favd_range == (0.05, 3.0)
+    free = build_problem(shot, replace(bounded, favd_range=None)).log_posterior
+    post = build_problem(shot, bounded).log_posterior
+    x = post.space.sample_prior(np.random.default_rng(3), 400)
+    favd = free.evaluate(x).blobs[:, list(free.blob_names).index("favd")]
+    inside = (favd >= 0.05) & (favd <= 3.0)
+    assert 0 < inside.sum() < inside.size
+    np.testing.assert_array_equal(post.log_prob(x)[inside], free.log_prob(x)[inside])
+    assert np.all(post.log_prob(x)[~inside & np.isfinite(favd)] == -np.inf)
+
+
 def test_posterior_recovers_the_stand(result, shot):
     summary = result.summary()
     names = ("top_height", "ground_elevation", "cover", "pai", "crown_length_ratio", "lai")

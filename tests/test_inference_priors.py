@@ -10,6 +10,7 @@ from lidarinv.inference import coordinates
 from lidarinv.inference.parameters import default_space, read_priors_file
 from lidarinv.inference.priors import (
     LogUniform,
+    PriorTable,
     TruncatedLogNormal,
     TruncatedNormal,
     Uniform,
@@ -47,6 +48,22 @@ def test_transform_round_trip_and_jacobian(prior):
     # far out in u the parameter stays at the bound and the log-density stays finite
     x_far, log_jac_far = prior.from_unbounded(np.array([-800.0, 800.0]))
     assert np.all(np.isfinite(log_jac_far)) and np.all(np.isfinite(x_far))
+
+
+def test_prior_table_matches_each_prior_column_by_column(rng):
+    table = PriorTable(PRIORS)
+    u = rng.normal(0.0, 4.0, (50, len(PRIORS)))
+    u[0] = [-800.0, 800.0, -800.0, 800.0]
+    x, log_jac = table.from_unbounded(u)
+    x_out = np.column_stack([x[:, :2], x[:, 2:] * np.array([1.0, np.nan])])
+    x_out[1] = [-2.5, 25.0, 0.2, 6.0]  # each outside its support
+    log_pdf = table.log_pdf(x_out)
+    for i, prior in enumerate(PRIORS):
+        x_ref, log_jac_ref = prior.from_unbounded(u[:, i])
+        np.testing.assert_allclose(x[:, i], x_ref, rtol=1e-13)
+        np.testing.assert_allclose(log_jac[:, i], log_jac_ref, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(log_pdf[:, i], prior.log_pdf(x_out[:, i]), rtol=1e-12)
+    assert np.all(log_pdf[1] == -np.inf) and np.all(log_pdf[:, 3] == -np.inf)
 
 
 @pytest.mark.parametrize("prior", PRIORS, ids=lambda p: type(p).__name__)
@@ -100,6 +117,8 @@ def test_priors_file_overrides_fix_and_free(tmp_path):
         ("[canopy_colour]\nfixed = 1\n", "unknown parameter"),
         ("[cover]\nkind = 'uniform'\nlower = 1\n", "missing"),
         ("[cover\n", "not valid TOML"),
+        ("[favd]\nlower = 2.0\nupper = 1.0\n", "lower < upper"),
+        ("[favd]\nmedian = 1.0\n", "takes lower and upper"),
     ],
 )
 def test_priors_file_errors_name_the_problem(tmp_path, text, message):

@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from . import coordinates
-from .priors import LogUniform, TruncatedLogNormal, Uniform, make_prior
+from .priors import LogUniform, PriorTable, TruncatedLogNormal, Uniform, make_prior
 
 
 @dataclass(frozen=True)
@@ -77,6 +77,10 @@ DEFAULT_STRUCTURE_PRIORS = {
     "understory_lai": Uniform(0.0, 3.0),
 }
 
+#: A physically plausible support for the implied FAVD (m²/m³), for ``favd_range`` (off by
+#: default): tree crowns hold about 0.05–3 m²/m³ (the paper's jack pine 0.8).
+PLAUSIBLE_FAVD_RANGE = (0.05, 3.0)
+
 #: Held fixed unless a priors file frees them.
 DEFAULT_FIXED = {"crown_radius_slope": 0.1}
 
@@ -107,6 +111,7 @@ class ParameterSpace:
         self.names = tuple(p.name for p in self.free)
         if not self.free:
             raise ValueError("every parameter is fixed; nothing to infer")
+        self._priors = PriorTable([p.prior for p in self.free])
         both = "cover" in self.names and "pai" in self.names
         self._joint = (
             (self.names.index("cover"), self.names.index("pai"))
@@ -133,26 +138,19 @@ class ParameterSpace:
     def log_prior(self, x) -> np.ndarray:
         """Sum of the free parameters' log prior densities; −inf outside the support."""
         x = np.atleast_2d(np.asarray(x, float))
-        total = np.zeros(x.shape[0])
-        for i, p in enumerate(self.free):
-            total += p.prior.log_pdf(x[:, i])
+        total = self._priors.log_pdf(x).sum(axis=1)
         return np.where(np.isfinite(total), total, -np.inf)
 
     def from_unbounded(self, u):
         """Physical values (n, ndim) and log|Jacobian| (n,) from unbounded coordinates."""
         u = np.atleast_2d(np.asarray(u, float))
-        x = np.empty_like(u)
-        log_jac = np.zeros(u.shape[0])
-        joint = () if self._joint is None else self._joint
-        for i, p in enumerate(self.free):
-            if i not in joint:
-                x[:, i], lj = p.prior.from_unbounded(u[:, i])
-                log_jac += lj
-        if joint:
-            c, a = joint
-            x[:, c], x[:, a], lj = coordinates.to_cover_pai(u[:, c], u[:, a])
-            log_jac += lj
-        return x, log_jac
+        x, log_jac = self._priors.from_unbounded(u)
+        if self._joint is None:
+            return x, log_jac.sum(axis=1)
+        c, a = self._joint
+        log_jac[:, [c, a]] = 0.0
+        x[:, c], x[:, a], joint_log_jac = coordinates.to_cover_pai(u[:, c], u[:, a])
+        return x, log_jac.sum(axis=1) + joint_log_jac
 
     def to_unbounded(self, x):
         x = np.atleast_2d(np.asarray(x, float))
@@ -224,13 +222,17 @@ def read_priors_file(path) -> dict:
 
         [understory_lai]
         fixed = 0.0
+
+    A ``[favd]`` table with ``lower`` and ``upper`` (m²/m³) bounds the FAVD implied by the
+    other parameters (a joint prior constraint, see ``InversionSettings.favd_range``); it
+    is returned under the key ``"favd"`` as ``{"range": (lower, upper)}``.
     """
     try:
         with open(path, "rb") as handle:
             table = tomllib.load(handle)
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"{path}: not valid TOML: {error}") from None
-    known = set(STRUCTURE) | set(NUISANCE)
+    known = set(STRUCTURE) | set(NUISANCE) | {"favd"}
     unknown = sorted(set(table) - known)
     if unknown:
         raise ValueError(f"{path}: unknown parameter(s) {unknown}; known: {sorted(known)}")
@@ -238,6 +240,9 @@ def read_priors_file(path) -> dict:
     for name, spec in table.items():
         if not isinstance(spec, dict):
             raise ValueError(f"{path}: [{name}] must be a table")
+        if name == "favd":
+            changes[name] = _favd_range(path, spec)
+            continue
         spec = dict(spec)
         change = {}
         if "fixed" in spec:
@@ -251,3 +256,13 @@ def read_priors_file(path) -> dict:
             change["prior"] = make_prior(spec)
         changes[name] = change
     return changes
+
+
+def _favd_range(path, spec) -> dict:
+    unknown = sorted(set(spec) - {"lower", "upper"})
+    if unknown:
+        raise ValueError(f"{path}: [favd] takes lower and upper (m2/m3), not {unknown}")
+    low, high = float(spec.get("lower", 0.0)), float(spec.get("upper", np.inf))
+    if not (0.0 <= low < high):
+        raise ValueError(f"{path}: [favd] needs 0 <= lower < upper, got {low}, {high}")
+    return {"range": (low, high)}

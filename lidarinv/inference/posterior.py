@@ -66,6 +66,10 @@ class LogPosterior:
         g, shot-noise variance per unit signal (DN).
     discrepancy : float
         η, model-discrepancy standard deviation as a fraction of the signal.
+    favd_range : (float, float) (m²/m³)
+        Joint prior constraint: rows whose implied FAVD lies outside get −inf. The
+        waveform alone cannot tell dense short crowns from sparse long ones, so without it
+        the posterior runs along that ridge to FAVD values no forest has.
     """
 
     def __init__(
@@ -76,6 +80,7 @@ class LogPosterior:
         data: WindowData,
         shot_factor=0.0,
         discrepancy=0.0,
+        favd_range=(0.0, np.inf),
     ):
         if tuple(model.parameter_names) != tuple(mapping.model_free):
             raise ValueError("the expected model must be built with free=mapping.model_free")
@@ -83,6 +88,10 @@ class LogPosterior:
             raise ValueError("the expected model's heights do not match the window's axis")
         self.space, self.mapping, self.model, self.data = space, mapping, model, data
         self.shot_factor, self.discrepancy = float(shot_factor), float(discrepancy)
+        low, high = (float(b) for b in favd_range)
+        if not (0.0 <= low < high):
+            raise ValueError(f"favd_range needs 0 <= low < high, got {favd_range}")
+        self.favd_range = (low, high)
         self.blob_names = BLOB_NAMES
 
     @property
@@ -107,6 +116,9 @@ class LogPosterior:
             if ok.any():
                 v = {k: val[ok] for k, val in values.items()}
                 vectors, derived = self.mapping.model_vectors(v)
+                favd = derived["favd"]
+                plausible = (favd >= self.favd_range[0]) & (favd <= self.favd_range[1])
+                log_prior[np.flatnonzero(ok)[~plausible]] = -np.inf
                 result = self.model.evaluate(vectors)
                 m, var = model_moments(
                     result.samples,

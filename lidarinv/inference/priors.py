@@ -20,6 +20,67 @@ def _check_bounds(lower, upper, kind):
 
 
 @dataclass(frozen=True)
+class PriorForm:
+    """A prior written in the common form shared by every kind here.
+
+    The support is x ∈ [lower, upper]. With w = log x (``log_scale``) or w = x, it is
+    w ∈ [w_lower, w_upper] and log p(x) = −[log_scale]·ln x − ½((w − w_mean)/w_sd)² −
+    log_norm (w_sd = ∞ for the uniform kinds); the unbounded coordinate is
+    u = logit((w − w_lower)/(w_upper − w_lower)).
+    """
+
+    lower: float
+    upper: float
+    log_scale: bool
+    w_lower: float
+    w_upper: float
+    w_mean: float
+    w_sd: float
+    log_norm: float
+
+
+class PriorTable:
+    """Several priors evaluated together, column by column of an (n, k) array.
+
+    Parameters
+    ----------
+    priors : sequence of priors with a ``form()`` method
+    """
+
+    def __init__(self, priors):
+        forms = [p.form() for p in priors]
+        self._log = np.array([f.log_scale for f in forms])
+        self._lower = np.array([f.w_lower for f in forms], float)
+        self._span = np.array([f.w_upper - f.w_lower for f in forms], float)
+        self._mean = np.array([f.w_mean for f in forms], float)
+        self._sd = np.array([f.w_sd for f in forms], float)
+        self._norm = np.array([f.log_norm for f in forms], float)
+        self._x_lower = np.array([f.lower for f in forms], float)
+        self._x_upper = np.array([f.upper for f in forms], float)
+
+    def log_pdf(self, x) -> np.ndarray:
+        """Log densities (n, k) of the columns of x; −inf outside each support."""
+        x = np.asarray(x, float)
+        inside = (x >= self._x_lower) & (x <= self._x_upper)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            safe = np.where(inside, x, self._x_lower)
+            log_x = np.log(np.where(self._log, safe, 1.0))
+            w = np.where(self._log, log_x, safe)
+            y = (w - self._mean) / self._sd
+            out = -log_x - 0.5 * y * y - self._norm
+        return np.where(inside, out, -np.inf)
+
+    def from_unbounded(self, u):
+        """Values (n, k) and log|dx/du| (n, k) of unbounded coordinates u (n, k)."""
+        u = np.asarray(u, float)
+        w = self._lower + self._span * expit(u)
+        log_jac = np.log(self._span) + log_expit(u) + log_expit(-u)
+        x = np.where(self._log, np.exp(np.where(self._log, w, 0.0)), w)
+        np.clip(x, self._x_lower, self._x_upper, out=x)  # exp(log upper) may round above
+        return x, log_jac + np.where(self._log, w, 0.0)
+
+
+@dataclass(frozen=True)
 class Uniform:
     """Uniform on [lower, upper] (parameter units)."""
 
@@ -46,6 +107,12 @@ class Uniform:
 
     def sample(self, rng, size):
         return rng.uniform(self.lower, self.upper, size)
+
+    def form(self):
+        span = self.upper - self.lower
+        return PriorForm(
+            self.lower, self.upper, False, self.lower, self.upper, 0.0, np.inf, np.log(span)
+        )
 
     def describe(self):
         return {"kind": "uniform", "lower": self.lower, "upper": self.upper}
@@ -83,6 +150,19 @@ class LogUniform:
     def sample(self, rng, size):
         return np.exp(rng.uniform(np.log(self.lower), np.log(self.upper), size))
 
+    def form(self):
+        span = np.log(self.upper / self.lower)
+        return PriorForm(
+            self.lower,
+            self.upper,
+            True,
+            np.log(self.lower),
+            np.log(self.upper),
+            0.0,
+            np.inf,
+            np.log(span),
+        )
+
     def describe(self):
         return {"kind": "log-uniform", "lower": self.lower, "upper": self.upper}
 
@@ -114,6 +194,18 @@ class TruncatedNormal:
 
     to_unbounded = Uniform.to_unbounded
     from_unbounded = Uniform.from_unbounded
+
+    def form(self):
+        return PriorForm(
+            self.lower,
+            self.upper,
+            False,
+            self.lower,
+            self.upper,
+            self.mean,
+            self.sd,
+            self._log_norm(),
+        )
 
     def sample(self, rng, size):
         a, b = ndtr((self.lower - self.mean) / self.sd), ndtr((self.upper - self.mean) / self.sd)
@@ -148,11 +240,14 @@ class TruncatedLogNormal:
     def _standard(self, x):
         return (np.log(x) - np.log(self.median)) / self.sd_log
 
+    def _log_norm(self):
+        a, b = self._standard(self.lower), self._standard(self.upper)
+        return np.log(self.sd_log) + np.log(ndtr(b) - ndtr(a)) + 0.5 * np.log(2 * np.pi)
+
     def log_pdf(self, x):
         x = np.asarray(x, float)
         inside = (x >= self.lower) & (x <= self.upper)
-        a, b = self._standard(self.lower), self._standard(self.upper)
-        norm = np.log(self.sd_log) + np.log(ndtr(b) - ndtr(a)) + 0.5 * np.log(2 * np.pi)
+        norm = self._log_norm()
         with np.errstate(divide="ignore", invalid="ignore"):
             safe = np.where(inside, x, 1.0)
             y = self._standard(safe)
@@ -160,6 +255,19 @@ class TruncatedLogNormal:
 
     to_unbounded = LogUniform.to_unbounded
     from_unbounded = LogUniform.from_unbounded
+
+    def form(self):
+        w_lower, w_upper = np.log(self.lower), np.log(self.upper)
+        return PriorForm(
+            self.lower,
+            self.upper,
+            True,
+            w_lower,
+            w_upper,
+            np.log(self.median),
+            self.sd_log,
+            self._log_norm(),
+        )
 
     def sample(self, rng, size):
         a, b = ndtr(self._standard(self.lower)), ndtr(self._standard(self.upper))

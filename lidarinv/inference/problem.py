@@ -44,6 +44,11 @@ class InversionSettings:
         Model-discrepancy sd as a fraction of the signal (random tree arrangement); 0.2
         is the median per-bin spread of explicit realisations of a GEDI footprint around
         the expected waveform.
+    favd_range : (float, float) (m²/m³) or None
+        Prior support of the implied foliage area volume density, a joint constraint on
+        cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None
+        for none. ``parameters.PLAUSIBLE_FAVD_RANGE`` narrows the PAI posterior but, in
+        the recovery study, leaves the cover intervals too narrow (README).
     shape_pair : (str, str)
         Crown shapes mixed by ``cone_fraction``.
     priors : dict
@@ -61,6 +66,7 @@ class InversionSettings:
     margin_below_m: float = 5.0
     shot_factor: float = 0.0
     discrepancy: float = 0.2
+    favd_range: tuple | None = None
     shape_pair: tuple = ("cone", "ellipsoid")
     priors: dict = field(default_factory=dict)
     sampler: SamplerSettings = field(default_factory=SamplerSettings)
@@ -68,11 +74,16 @@ class InversionSettings:
 
     @classmethod
     def from_priors_file(cls, path, **changes) -> "InversionSettings":
-        return cls(priors=read_priors_file(path), **changes)
+        priors = read_priors_file(path)
+        favd = priors.pop("favd", None)
+        if favd is not None:
+            changes.setdefault("favd_range", favd["range"])
+        return cls(priors=priors, **changes)
 
     def describe(self) -> dict:
         out = {k: v for k, v in self.__dict__.items() if k not in ("priors", "sampler", "model")}
         out["shape_pair"] = list(self.shape_pair)
+        out["favd_range"] = None if self.favd_range is None else list(self.favd_range)
         out["sampler"] = {k: v for k, v in self.sampler.__dict__.items()}
         out["sampler"]["moves"] = [list(m) for m in self.sampler.moves]
         out["model"] = dict(self.model.__dict__)
@@ -175,6 +186,12 @@ def build_problem(obs: Observation, settings: InversionSettings | None = None) -
         settings=settings.model,
     )
     log_posterior = LogPosterior(
-        space, mapping, model, window, settings.shot_factor, settings.discrepancy
+        space,
+        mapping,
+        model,
+        window,
+        settings.shot_factor,
+        settings.discrepancy,
+        (0.0, np.inf) if settings.favd_range is None else settings.favd_range,
     )
     return InversionProblem(obs, analysis, window, instrument, log_posterior, settings)

@@ -27,6 +27,9 @@ class SamplerSettings:
         The chain must be at least this many integrated autocorrelation times long.
     tau_tolerance : float
         Largest relative change of τ between checks for τ to count as stable.
+    burn_taus : float
+        Burn-in discarded before τ is estimated and from the results: this many times the
+        previous estimate of the largest τ, and never more than a third of the chain.
     candidates : int
         Prior draws scored to pick the optimiser's starts.
     starts : int
@@ -43,6 +46,7 @@ class SamplerSettings:
     check_every: int = 200
     tau_multiple: float = 50.0
     tau_tolerance: float = 0.05
+    burn_taus: float = 5.0
     candidates: int = 512
     starts: int = 4
     ball: float = 1.0
@@ -145,6 +149,15 @@ def laplace_covariance(log_prob, u, step=1e-3, max_variance=4.0) -> np.ndarray:
     return (vectors * variances) @ vectors.T
 
 
+def burn_in(n_steps, tau, burn_taus) -> int:
+    """Steps to discard: ``burn_taus`` times the largest finite τ, at most a third of the
+    chain (a third while τ is unknown)."""
+    third = n_steps // 3
+    if not np.all(np.isfinite(tau)):
+        return third
+    return min(third, int(np.ceil(burn_taus * np.max(tau))))
+
+
 def _initial_ball(log_prob, centre, covariance, n_walkers, rng):
     """Walkers drawn from N(centre, covariance) with finite log-probability (the spread
     halves for redrawn walkers until all are finite)."""
@@ -225,7 +238,7 @@ def run_sampler(
         steps = min(s.check_every, s.max_steps - sampler.iteration)
         state = sampler.run_mcmc(state, steps, progress=False)
         bar.update(steps)
-        discard = sampler.iteration // 3  # τ of the chain after the start transient
+        discard = burn_in(sampler.iteration, tau, s.burn_taus)
         new_tau = sampler.get_autocorr_time(tol=0, quiet=True, discard=discard)
         history.append((sampler.iteration, new_tau.copy()))
         stable = np.all(np.abs(new_tau - tau) < s.tau_tolerance * new_tau)
@@ -245,7 +258,7 @@ def run_sampler(
     if np.any(acceptance < 0.05):
         flags.append(f"low acceptance in {int(np.sum(acceptance < 0.05))} walker(s)")
     tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else sampler.iteration / 10
-    burn = sampler.iteration // 3
+    burn = burn_in(sampler.iteration, tau, s.burn_taus)
     thin = max(1, int(tau_max / 2))
     return SamplerRun(
         chain=sampler.get_chain(),

@@ -50,6 +50,12 @@ def default_template(shape_pair=("cone", "ellipsoid")) -> StandParams:
     )
 
 
+def _unit_rule(nodes):
+    """Gauss–Legendre nodes and weights on [0, 1]."""
+    x, w = np.polynomial.legendre.leggauss(nodes)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
 class StandMapping:
     """Vectorised map from inversion parameters to expected-model vectors.
 
@@ -61,10 +67,15 @@ class StandMapping:
         Shapes mixed by ``cone_fraction``: the first gets ``cone_fraction``, the second
         the rest.
     nodes : int
-        Gauss–Legendre nodes of the height expectations.
+        Gauss–Legendre nodes of the height expectations (smooth integrands over the
+        truncated height density: 16 nodes reach round-off).
+    profile_nodes : int
+        Nodes of the crown-volume profile, whose integrand has kinks at the crown ends.
     """
 
-    def __init__(self, template: StandParams, shape_pair=("cone", "ellipsoid"), nodes=48):
+    def __init__(
+        self, template: StandParams, shape_pair=("cone", "ellipsoid"), nodes=16, profile_nodes=48
+    ):
         if template.cohort2_fraction > 0:
             raise ValueError("the default parameterisation models a single cohort")
         unknown = [s for s in shape_pair if s not in CROWN_SHAPES]
@@ -74,27 +85,28 @@ class StandMapping:
         self.shape_pair = tuple(shape_pair)
         self.family = HEIGHT_DISTRIBUTIONS[template.height_family]
         self.truncation = template.height_truncation
-        x, w = np.polynomial.legendre.leggauss(nodes)
-        self._x, self._w = 0.5 * (x + 1.0), 0.5 * w
+        self._rule = _unit_rule(nodes)
+        self._profile_rule = _unit_rule(profile_nodes)
         ratio = dict(zip(CROWN_SHAPES, template.favd_ratio))
         self._volume = np.array([CROWN_SHAPES[s].volume_fraction for s in shape_pair])
         self._leaf = self._volume * np.array([ratio[s] for s in shape_pair])
         self.model_free = MODEL_FIELDS + tuple(f"mix_{s}" for s in shape_pair)
         assert all(f in MIX_FIELDS for f in self.model_free[len(MODEL_FIELDS) :])
 
-    def _quadrature(self, mean, sd, lo=None):
+    def _quadrature(self, mean, sd, lo=None, rule=None):
         """Heights (n, q) and weights (n, q) summing to the probability mass on [lo, top]."""
+        x, w = self._rule if rule is None else rule
         t = self.truncation
         low = self.family.ppf(1e-9, mean, sd, t) if lo is None else lo
         high = self.family.isf(1e-9, mean, sd, t)
         low = np.minimum(low, high)
-        h = low[:, None] + (high - low)[:, None] * self._x
-        weight = (high - low)[:, None] * self._w * self.family.pdf(h, mean[:, None], sd[:, None], t)
+        h = low[:, None] + (high - low)[:, None] * x
+        weight = (high - low)[:, None] * w * self.family.pdf(h, mean[:, None], sd[:, None], t)
         return h, weight
 
-    def _moments(self, v):
+    def _moments(self, v, rule=None):
         mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
-        h, weight = self._quadrature(mean, sd)
+        h, weight = self._quadrature(mean, sd, rule=rule)
         total = weight.sum(axis=1)
         p = weight / np.where(total > 0, total, 1.0)[:, None]
         radius = self.template.crown_radius_intercept + v["crown_radius_slope"][:, None] * h
@@ -163,7 +175,7 @@ class StandMapping:
     def crown_volume_profile(self, v, z) -> np.ndarray:
         """Crown volume per unit ground area and height (m³/m²/m) at heights z (m), (n, nz)."""
         z = np.asarray(z, float)
-        mean, _sd, h, p, area = self._moments(v)
+        mean, _sd, h, p, area = self._moments(v, self._profile_rule)
         ratio = v["crown_length_ratio"][:, None, None]
         mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
         lam = -np.log1p(-v["cover"]) / np.sum(p * area, axis=1)
