@@ -1,12 +1,13 @@
 """Wall time per footprint to convergence (issue: Bayesian inversion).
 
 GEDI-like synthetic shots (explicit random stands, see :mod:`lidarinv.inference.synthetic`)
-are inverted with the default settings (13 free parameters) on one core, BLAS threads
-pinned to 1. Reported per shot: wall time, steps, walkers, max τ, converged, and the
-log-posterior evaluations per second. Target: ≤ 10 s per footprint with ~10 free
-parameters.
+are inverted on one core, BLAS threads pinned to 1, in two configurations: the default
+settings (13 free parameters) and ``10-free`` (baseline and noise σ held at the shot's
+estimates, crown-shape mix fixed at half cones). Reported per shot: wall time, steps,
+walkers, max τ, converged, and the cost of one log-posterior row. Target: ≤ 10 s per
+footprint with ~10 free parameters.
 
-    python studies/inversion_speed.py [--n 3] [--max-steps 20000]
+    python studies/inversion_speed.py [--n 3] [--max-steps 20000] [--config default 10-free]
 
 Writes studies/output/inversion_speed/summary.json.
 """
@@ -29,6 +30,12 @@ from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot  # noqa
 
 TARGET_SECONDS = 10.0
 
+#: Configurations by name: changes to the default InversionSettings.
+CONFIGURATIONS = {
+    "default": {},
+    "10-free": {"sample_noise": False, "priors": {"cone_fraction": {"fixed": 0.5}}},
+}
+
 
 def evaluation_cost(problem, rng, batch=32, repeats=20):
     """Seconds per log-posterior row, batched like the sampler (best of repeats)."""
@@ -41,17 +48,9 @@ def evaluation_cost(problem, rng, batch=32, repeats=20):
     return best / batch
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=3)
-    parser.add_argument("--max-steps", type=int, default=20000)
-    parser.add_argument("--seed", type=int, default=5)
-    args = parser.parse_args()
-    settings = InversionSettings()
-    settings = replace(settings, sampler=replace(settings.sampler, max_steps=args.max_steps))
-    rng = np.random.default_rng(args.seed)
+def _run(settings, n, rng, name):
     rows = []
-    for i in range(args.n):
+    for i in range(n):
         obs = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng, shot_id=i)
         problem = build_problem(obs, settings)
         per_row = evaluation_cost(problem, rng)
@@ -72,18 +71,36 @@ def main():
                 "microseconds_per_evaluation": per_row * 1e6,
             }
         )
-        print(rows[-1], flush=True)
-    summary = {
-        "target_seconds": TARGET_SECONDS,
-        "median_seconds": float(np.median([r["seconds"] for r in rows])),
-        "converged_fraction": float(np.mean([r["converged"] for r in rows])),
-        "load_average": os.getloadavg(),
-        "shots": rows,
-    }
+        print(name, rows[-1], flush=True)
+    return rows
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=3)
+    parser.add_argument("--max-steps", type=int, default=20000)
+    parser.add_argument("--seed", type=int, default=5)
+    parser.add_argument("--config", nargs="+", default=list(CONFIGURATIONS), choices=CONFIGURATIONS)
+    args = parser.parse_args()
+    summary = {"target_seconds": TARGET_SECONDS, "load_average": os.getloadavg()}
+    for name in args.config:
+        settings = replace(InversionSettings(), **CONFIGURATIONS[name])
+        settings = replace(settings, sampler=replace(settings.sampler, max_steps=args.max_steps))
+        rows = _run(settings, args.n, np.random.default_rng(args.seed), name)
+        summary[name] = {
+            "median_seconds": float(np.median([r["seconds"] for r in rows])),
+            "converged_fraction": float(np.mean([r["converged"] for r in rows])),
+            "shots": rows,
+        }
     folder = Path(__file__).parent / "output" / "inversion_speed"
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "summary.json").write_text(json.dumps(summary, indent=1))
-    print(json.dumps({k: v for k, v in summary.items() if k != "shots"}, indent=1))
+    brief = {
+        k: {kk: vv for kk, vv in v.items() if kk != "shots"}
+        for k, v in summary.items()
+        if isinstance(v, dict)
+    }
+    print(json.dumps(brief, indent=1))
 
 
 if __name__ == "__main__":

@@ -72,6 +72,16 @@ def test_invalid_and_extreme_parameters_give_minus_inf_never_nan(problem, shot):
     assert not np.any(np.isnan(values))
 
 
+def test_noise_held_at_the_shot_estimates_when_not_sampled(shot):
+    problem = build_problem(shot, replace(QUICK, sample_noise=False))
+    space, analysis = problem.space, problem.analysis
+    assert "baseline" not in space.names and "noise_sigma" not in space.names
+    assert space.by_name["baseline"].fixed == pytest.approx(analysis.noise_mean)
+    assert space.by_name["noise_sigma"].fixed == pytest.approx(analysis.noise_sigma)
+    # the estimates are those of the simulated noise (baseline 50 DN, σ 2 DN)
+    assert abs(analysis.noise_mean - 50.0) < 0.5 and abs(analysis.noise_sigma - 2.0) < 0.3
+
+
 def test_favd_range_excludes_only_rows_outside_it(shot, tmp_path):
     path = tmp_path / "priors.toml"
     path.write_text("[favd]\nlower = 0.05\nupper = 3.0\n[rho_ratio]\nfixed = 1.5\n")

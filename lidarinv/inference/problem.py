@@ -32,6 +32,11 @@ class InversionSettings:
         Use the shot's transmit pulse when the file has one.
     noise_method : str
         Noise estimate for the priors: ``auto``, ``ends``, ``histogram`` or ``product``.
+    sample_noise : bool
+        Sample the baseline and noise σ; if False, hold them at the shot's estimates from
+        the signal-free bins (two fewer free parameters; a GEDI window has hundreds of such
+        bins, so the estimates are far tighter than anything else in the posterior). A
+        priors-file entry for either still takes precedence.
     n_sigma : float
         Signal threshold above the noise mean, in σ.
     margin_above_m, margin_below_m : float (m)
@@ -61,6 +66,7 @@ class InversionSettings:
     instrument: str = "gedi"
     use_measured_pulse: bool = True
     noise_method: str = "auto"
+    sample_noise: bool = True
     n_sigma: float = 4.0
     margin_above_m: float = 10.0
     margin_below_m: float = 5.0
@@ -176,7 +182,11 @@ def build_problem(obs: Observation, settings: InversionSettings | None = None) -
     if room <= default_top.lower + 1.0:
         raise ValueError(f"shot {obs.shot_id}: the window leaves no room above the ground")
     nuisance["top_height"] = Uniform(default_top.lower, min(default_top.upper, room))
-    space = default_space(nuisance, settings.priors)
+    overrides = dict(settings.priors)
+    if not settings.sample_noise:
+        overrides.setdefault("baseline", {"fixed": float(b)})
+        overrides.setdefault("noise_sigma", {"fixed": float(sigma)})
+    space = default_space(nuisance, overrides)
     mapping = StandMapping(default_template(settings.shape_pair), settings.shape_pair)
     model = ExpectedWaveformModel(
         instrument,

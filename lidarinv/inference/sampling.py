@@ -22,7 +22,11 @@ class SamplerSettings:
     max_steps : int
         Cap on steps; a run that hits it unconverged is flagged.
     check_every : int
-        Steps between convergence checks.
+        Steps between convergence checks, at least.
+    check_growth : float
+        Steps between checks as a fraction of the chain so far, when that is more than
+        ``check_every`` (each check costs time in proportion to the chain's length, so
+        checks grow sparser as it grows: the total stays in proportion to the chain).
     tau_multiple : float
         The chain must be at least this many integrated autocorrelation times long.
     tau_tolerance : float
@@ -44,6 +48,7 @@ class SamplerSettings:
     n_walkers: int = 32
     max_steps: int = 20_000
     check_every: int = 200
+    check_growth: float = 0.1
     tau_multiple: float = 50.0
     tau_tolerance: float = 0.05
     burn_taus: float = 5.0
@@ -235,7 +240,8 @@ def run_sampler(
     bar = tqdm(total=s.max_steps, disable=not progress, desc="sampling", unit="step")
     bar.update(sampler.iteration)
     while sampler.iteration < s.max_steps:
-        steps = min(s.check_every, s.max_steps - sampler.iteration)
+        every = max(s.check_every, int(s.check_growth * sampler.iteration))
+        steps = min(every, s.max_steps - sampler.iteration)
         state = sampler.run_mcmc(state, steps, progress=False)
         bar.update(steps)
         discard = burn_in(sampler.iteration, tau, s.burn_taus)
