@@ -71,6 +71,8 @@ def _weibull_fast(which, x, args, loc, scale):
         dens = k / scale * np.exp((k - 1) * log_y - np.exp(k * log_y))
         at_zero = k / scale * np.where(k < 1, np.inf, np.where(k == 1, 1.0, 0.0))
         return np.where(x >= loc, np.where(y > 0, dens, at_zero), 0.0)
+    if which == "sf":
+        return np.exp(-((np.maximum(x - loc, 0.0) / scale) ** k))
     tail = -np.log1p(-x) if which == "ppf" else -np.log(x)
     return loc + scale * tail ** (1.0 / k)
 
@@ -81,6 +83,9 @@ def _lognormal_fast(which, x, args, loc, scale):
         y = np.maximum(x - loc, 1e-300) / scale
         dens = np.exp(-0.5 * (np.log(y) / sigma) ** 2) / (y * scale * sigma * np.sqrt(2 * np.pi))
         return np.where(x > loc, dens, 0.0)
+    if which == "sf":
+        with np.errstate(divide="ignore"):
+            return ndtr(-np.log(np.maximum(x - loc, 0.0) / scale) / sigma)
     sign = 1.0 if which == "ppf" else -1.0
     return loc + scale * np.exp(sign * sigma * ndtri(x))
 
@@ -92,6 +97,9 @@ def _truncnorm_fast(which, x, args, loc, scale):
         y = (x - loc) / scale
         dens = np.exp(-0.5 * y * y) / (np.sqrt(2 * np.pi) * scale * (high - low))
         return np.where((y >= a) & (y <= b), dens, 0.0)
+    if which == "sf":
+        y = np.clip((x - loc) / scale, a, b)
+        return np.clip((high - ndtr(y)) / (high - low), 0.0, 1.0)
     p = low + x * (high - low) if which == "ppf" else high - x * (high - low)
     return loc + scale * ndtri(p)
 
@@ -118,9 +126,9 @@ class HeightFamily:
     meaning : str
         What ``mean`` and ``sd`` mean for this family.
     fast : callable
-        ``fast(which, x, args, loc, scale)`` for ``which`` in pdf/ppf/isf: the same
+        ``fast(which, x, args, loc, scale)`` for ``which`` in pdf/ppf/isf/sf: the same
         functions in closed form through scipy.special (array-aware, no scipy.stats
-        overhead); :meth:`pdf`, :meth:`ppf` and :meth:`isf` use it.
+        overhead); :meth:`pdf`, :meth:`ppf`, :meth:`isf` and :meth:`sf` use it.
     """
 
     name: str
@@ -146,6 +154,10 @@ class HeightFamily:
     def isf(self, q, mean, sd, truncation=2.0):
         """Height (m) above which a fraction ``q`` of the trees lies."""
         return self.fast("isf", q, *self.arguments(mean, sd, truncation))
+
+    def sf(self, x, mean, sd, truncation=2.0):
+        """Fraction of the trees taller than ``x`` (m)."""
+        return self.fast("sf", x, *self.arguments(mean, sd, truncation))
 
 
 #: Height-distribution families by name.

@@ -11,7 +11,8 @@ bias and RMSE of the posterior median, and the same errors of the direct metrics
 gap-based cover).
 
     python studies/recovery.py [--n 200] [--max-steps 4000] [--workers 2]
-                               [--inverse-crime] [--discrepancy 0.2] [--seed 1]
+                               [--inverse-crime] [--discrepancy 0.2]
+                               [--discrepancy-model observed] [--seed 1] [--tag _NAME]
 
 Writes studies/output/recovery[_inverse_crime]/{summary.json,shots.json,*.png}.
 """
@@ -33,6 +34,7 @@ from scipy import stats  # noqa: E402
 
 from forward.stand_params import StandParams  # noqa: E402
 from lidarinv.inference import InversionSettings, invert_shot  # noqa: E402
+from lidarinv.inference.discrepancy import DISCREPANCY_MODELS  # noqa: E402
 from lidarinv.inference.stand_mapping import TOP_SDS  # noqa: E402
 from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot  # noqa: E402
 from lidarinv.observe.analyse import analyse  # noqa: E402
@@ -168,16 +170,24 @@ def main():
     parser.add_argument("--workers", type=int, default=os.cpu_count())
     parser.add_argument("--inverse-crime", action="store_true")
     parser.add_argument("--discrepancy", type=float, default=InversionSettings().discrepancy)
+    parser.add_argument(
+        "--discrepancy-model",
+        default=InversionSettings().discrepancy_model,
+        choices=sorted(DISCREPANCY_MODELS),
+    )
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
-    settings = InversionSettings(discrepancy=args.discrepancy)
+    settings = InversionSettings(
+        discrepancy=args.discrepancy, discrepancy_model=args.discrepancy_model
+    )
     settings = replace(settings, sampler=replace(settings.sampler, max_steps=args.max_steps))
     seeds = np.random.SeedSequence(args.seed).generate_state(args.n)
     tasks = [(i, int(s), not args.inverse_crime, settings) for i, s in enumerate(seeds)]
     folder = (
         Path(__file__).parent
         / "output"
-        / ("recovery_inverse_crime" if args.inverse_crime else "recovery")
+        / (("recovery_inverse_crime" if args.inverse_crime else "recovery") + args.tag)
     )
     folder.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
@@ -192,6 +202,7 @@ def main():
             "explicit_realisations": not args.inverse_crime,
             "max_steps": args.max_steps,
             "discrepancy": args.discrepancy,
+            "discrepancy_model": args.discrepancy_model,
             "wall_seconds": time.perf_counter() - start,
             "workers": args.workers,
         }

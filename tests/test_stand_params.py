@@ -36,6 +36,7 @@ def test_closed_forms_agree_with_scipy_stats(family, mean, sd):
     q = np.array([1e-9, 1e-6, 0.1, 0.5, 0.9])
     np.testing.assert_allclose(fam.ppf(q, mean, sd, 2.5), frozen.ppf(q), rtol=1e-7)
     np.testing.assert_allclose(fam.isf(q, mean, sd, 2.5), frozen.isf(q), rtol=1e-7)
+    np.testing.assert_allclose(fam.sf(x, mean, sd, 2.5), frozen.sf(x), rtol=1e-9, atol=1e-15)
 
 
 def test_shape_mix_accepts_names_and_mappings():

@@ -1,7 +1,7 @@
 """The observation likelihood: heteroscedastic Gaussian with censored and saturated bins.
 
-Per the physics conventions, y_j = b + a·W_j + ε_j with ε_j ~ N(0, σn² + g·a·W_j). An
-optional model-discrepancy term adds (η·a·W_j)² to the variance, for the difference
+Per the physics conventions, y_j = b + a·W_j + ε_j with ε_j ~ N(0, σn² + g·a·W_j). A
+model-discrepancy term (:mod:`.discrepancy`) adds to the variance, for the difference
 between the one random arrangement of trees in a footprint and the expected stand.
 Samples set to the floor are censored, log Φ((floor − μ)/s); samples at the digitiser
 maximum are censored from above, log Φ((μ − max)/s).
@@ -77,14 +77,13 @@ def log_likelihood(data: WindowData, mean, variance) -> np.ndarray:
     return total
 
 
-def model_moments(signal, gain, baseline, noise_sigma, shot_factor=0.0, discrepancy=0.0):
+def model_moments(signal, gain, baseline, noise_sigma, shot_factor=0.0, extra_variance=0.0):
     """Mean and variance (DN, DN²) of the samples for model waveforms ``signal`` (n, bins).
 
-    ``signal`` is the noise-free waveform W (apparent reflectance per bin); the other
-    arguments are (n,) arrays or scalars.
+    ``signal`` is the noise-free waveform W (apparent reflectance per bin); ``gain``,
+    ``baseline`` and ``noise_sigma`` are (n,) arrays; ``extra_variance`` (DN², scalar or
+    (n, bins)) is added, e.g. a model discrepancy (:mod:`.discrepancy`).
     """
     scaled = np.asarray(gain)[:, None] * signal
-    variance = np.asarray(noise_sigma)[:, None] ** 2 + shot_factor * scaled
-    if discrepancy:
-        variance = variance + (discrepancy * scaled) ** 2
+    variance = np.asarray(noise_sigma)[:, None] ** 2 + shot_factor * scaled + extra_variance
     return np.asarray(baseline)[:, None] + scaled, variance

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .discrepancy import model_variance
 from .likelihood import WindowData, log_likelihood, model_moments
 from .parameters import ParameterSpace
 from .stand_mapping import DERIVED, StandMapping
@@ -66,10 +67,9 @@ class LogPosterior:
         g, shot-noise variance per unit signal (DN).
     discrepancy : float
         η, model-discrepancy standard deviation as a fraction of the signal.
-    favd_range : (float, float) (m²/m³)
-        Joint prior constraint: rows whose implied FAVD lies outside get −inf. The
-        waveform alone cannot tell dense short crowns from sparse long ones, so without it
-        the posterior runs along that ridge to FAVD values no forest has.
+    fixed_discrepancy : array (bins,) (DN²), optional
+        A discrepancy variance fixed by the observation (:mod:`.discrepancy`), used
+        instead of (η·a·W)².
     """
 
     def __init__(
@@ -81,6 +81,7 @@ class LogPosterior:
         shot_factor=0.0,
         discrepancy=0.0,
         favd_range=(0.0, np.inf),
+        fixed_discrepancy=None,
     ):
         if tuple(model.parameter_names) != tuple(mapping.model_free):
             raise ValueError("the expected model must be built with free=mapping.model_free")
@@ -92,6 +93,12 @@ class LogPosterior:
         if not (0.0 <= low < high):
             raise ValueError(f"favd_range needs 0 <= low < high, got {favd_range}")
         self.favd_range = (low, high)
+        if fixed_discrepancy is not None:
+            fixed_discrepancy = np.asarray(fixed_discrepancy, float)
+            good = np.all(np.isfinite(fixed_discrepancy) & (fixed_discrepancy >= 0))
+            if fixed_discrepancy.shape != data.axis.shape or not good:
+                raise ValueError("fixed_discrepancy must be finite, ≥ 0 and one per window bin")
+        self.fixed_discrepancy = fixed_discrepancy
         self.blob_names = BLOB_NAMES
 
     @property
@@ -126,7 +133,9 @@ class LogPosterior:
                     v["baseline"],
                     v["noise_sigma"],
                     self.shot_factor,
-                    self.discrepancy,
+                    model_variance(self.discrepancy, v["gain"], result.samples)
+                    if self.fixed_discrepancy is None
+                    else self.fixed_discrepancy,
                 )
                 like = np.where(result.valid, log_likelihood(self.data, m, var), -np.inf)
                 log_like[ok] = like

@@ -11,6 +11,7 @@ from forward.pulse import MeasuredPulse
 from lidarinv.observe.analyse import analyse
 from lidarinv.observe.observation import Observation
 
+from .discrepancy import DISCREPANCY_MODELS
 from .likelihood import WindowData
 from .parameters import DEFAULT_STRUCTURE_PRIORS, default_space, read_priors_file
 from .posterior import LogPosterior
@@ -46,9 +47,12 @@ class InversionSettings:
     shot_factor : float (DN)
         Shot-noise variance per unit signal, g.
     discrepancy : float
-        Model-discrepancy sd as a fraction of the signal (random tree arrangement); 0.2
-        is the median per-bin spread of explicit realisations of a GEDI footprint around
-        the expected waveform.
+        η, the model-discrepancy sd as a fraction of the signal (the one random arrangement
+        of trees in a footprint against the expected stand); 0.2 is the median per-bin
+        spread of explicit realisations of a GEDI footprint around the expected waveform.
+    discrepancy_model : str
+        Which signal the discrepancy is a fraction of (:mod:`.discrepancy`): ``model``,
+        each row's model waveform, or ``observed``, the shot's smoothed signal.
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
         cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None
@@ -72,6 +76,7 @@ class InversionSettings:
     margin_below_m: float = 5.0
     shot_factor: float = 0.0
     discrepancy: float = 0.2
+    discrepancy_model: str = "observed"
     favd_range: tuple | None = None
     shape_pair: tuple = ("cone", "ellipsoid")
     priors: dict = field(default_factory=dict)
@@ -148,6 +153,21 @@ def _window_bounds(obs, analysis, settings, pulse_low, pulse_high):
     return max(lo, 0), min(hi, obs.n_bins)
 
 
+def _fixed_discrepancy(window, analysis, settings, smooth_bins):
+    try:
+        function = DISCREPANCY_MODELS[settings.discrepancy_model]
+    except KeyError:
+        raise ValueError(
+            f"unknown discrepancy model {settings.discrepancy_model!r}; "
+            f"known: {sorted(DISCREPANCY_MODELS)}"
+        ) from None
+    if function is None:
+        return None
+    return function(
+        window.samples, analysis.noise_mean, analysis.noise_sigma, smooth_bins, settings.discrepancy
+    )
+
+
 def build_problem(obs: Observation, settings: InversionSettings | None = None) -> InversionProblem:
     """Analyse the shot, choose the window, set the shot's priors and build the posterior."""
     settings = InversionSettings() if settings is None else settings
@@ -203,5 +223,6 @@ def build_problem(obs: Observation, settings: InversionSettings | None = None) -
         settings.shot_factor,
         settings.discrepancy,
         (0.0, np.inf) if settings.favd_range is None else settings.favd_range,
+        _fixed_discrepancy(window, analysis, settings, smooth_bins=1.0),
     )
     return InversionProblem(obs, analysis, window, instrument, log_posterior, settings)

@@ -239,11 +239,12 @@ def run_sampler(
     history, tau, converged = [], np.full(ndim, np.inf), False
     bar = tqdm(total=s.max_steps, disable=not progress, desc="sampling", unit="step")
     bar.update(sampler.iteration)
-    while sampler.iteration < s.max_steps:
-        every = max(s.check_every, int(s.check_growth * sampler.iteration))
-        steps = min(every, s.max_steps - sampler.iteration)
-        state = sampler.run_mcmc(state, steps, progress=False)
-        bar.update(steps)
+    # one generator for the whole run: the backend grows once, not at every check
+    next_check = sampler.iteration + s.check_every
+    for _ in sampler.sample(state, iterations=max(s.max_steps - sampler.iteration, 0)):
+        if sampler.iteration < min(next_check, s.max_steps):
+            continue
+        bar.update(sampler.iteration - bar.n)
         discard = burn_in(sampler.iteration, tau, s.burn_taus)
         new_tau = sampler.get_autocorr_time(tol=0, quiet=True, discard=discard)
         history.append((sampler.iteration, new_tau.copy()))
@@ -254,6 +255,7 @@ def run_sampler(
         if long_enough and stable and np.all(np.isfinite(tau)):
             converged = True
             break
+        next_check = sampler.iteration + max(s.check_every, int(s.check_growth * sampler.iteration))
     bar.close()
     if not converged:
         flags.append(

@@ -155,6 +155,7 @@ class StandMapping:
             ]
         )
         derived = {
+            "crown_area": per_stem_area,  # m², not a blob: for the discrepancy model
             "density": lam * 1e4,
             "favd": favd,
             "mean_height": np.sum(p * h, axis=1),
@@ -163,6 +164,21 @@ class StandMapping:
             "lai": v["pai"] + v["understory_lai"],
         }
         return vectors, derived
+
+    def crowns_spanning(self, v, z) -> np.ndarray:
+        """Stems per m² whose crowns span height ``z`` (m above the ground), (n, nz).
+
+        A crown of a tree of height h spans [(1 − ℓ)·h, h], so the trees are those with
+        z ≤ h ≤ z/(1 − ℓ); ``v`` holds ``density_m2`` (n,) besides the parameters.
+        """
+        mean = v["top_height"] - TOP_SDS * v["height_sd"]
+        sd, ratio = v["height_sd"][:, None], v["crown_length_ratio"][:, None]
+        z = np.maximum(np.asarray(z, float), 0.0)
+        mean, t = mean[:, None], self.truncation
+        with np.errstate(divide="ignore"):
+            base = np.where(ratio < 1.0, z / np.maximum(1.0 - ratio, 0.0), np.inf)
+        taller = self.family.sf(z, mean, sd, t) - self.family.sf(base, mean, sd, t)
+        return v["density_m2"][:, None] * np.maximum(taller, 0.0)
 
     def _dominant_height(self, mean, sd, density):
         """Mean height of the DOMINANT_PER_HA tallest stems per hectare (all if fewer)."""
