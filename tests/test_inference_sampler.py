@@ -108,3 +108,25 @@ def test_resume_from_hdf5_backend(tmp_path):
     )
     assert again.chain.shape[0] == 180
     np.testing.assert_array_equal(again.chain[:100], first.chain)
+
+
+def test_chain_sampled_in_other_coordinates_is_not_resumed(tmp_path):
+    import emcee
+
+    rng = np.random.default_rng(9)
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
+    toy = LinearGaussianToy(space, rng)
+    path = tmp_path / "chain.h5"
+    settings = SamplerSettings(n_walkers=8, max_steps=60, check_every=30)
+
+    def run(coordinates, steps):
+        backend = emcee.backends.HDFBackend(str(path), name="shot_1")
+        settings_now = SamplerSettings(n_walkers=8, max_steps=steps, check_every=30)
+        return run_sampler(toy, space, rng, settings_now, backend=backend, coordinates=coordinates)
+
+    run(space.signature(), settings.max_steps)
+    assert run(space.signature(), 90).chain.shape[0] == 90  # same coordinates: resumed
+    wider = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-30.0, 30.0)) for i in range(3))
+    assert wider.signature() != space.signature()
+    with pytest.raises(ValueError, match="other coordinates"):
+        run(wider.signature(), 120)

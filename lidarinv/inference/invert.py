@@ -52,6 +52,7 @@ def invert_shot(
         problem.settings.sampler,
         backend=backend,
         progress=progress,
+        coordinates=problem.space.signature(),
     )
     return collect_result(problem, run, rng)
 

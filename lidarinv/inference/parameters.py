@@ -123,6 +123,12 @@ class ParameterSpace:
     def ndim(self) -> int:
         return len(self.free)
 
+    def signature(self) -> str:
+        """The sampled coordinates, for labelling stored chains: free names and transforms."""
+        joint = "cover-pai-joint-v1" if self._joint is not None else "per-parameter"
+        priors = ";".join(f"{p.name}:{p.prior.describe()}" for p in self.free)
+        return f"lidarinv logit transforms, {joint}; {priors}"
+
     def units(self, name) -> str:
         return self.by_name[name].units
 

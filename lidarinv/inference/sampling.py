@@ -154,6 +154,20 @@ def laplace_covariance(log_prob, u, step=1e-3, max_variance=4.0) -> np.ndarray:
     return (vectors * variances) @ vectors.T
 
 
+def _check_coordinates(backend, coordinates, resume):
+    """Refuse to resume a chain sampled in other coordinates; label a new one."""
+    with backend.open("a") as handle:
+        group = handle[backend.name]
+        stored = group.attrs.get("lidarinv_coordinates")
+        if resume and stored != coordinates:
+            raise ValueError(
+                f"{backend.filename} [{backend.name}] holds a chain sampled in other "
+                f"coordinates ({stored or 'unlabelled'}), not {coordinates}: "
+                "write to a new file or group"
+            )
+        group.attrs["lidarinv_coordinates"] = coordinates
+
+
 def burn_in(n_steps, tau, burn_taus) -> int:
     """Steps to discard: ``burn_taus`` times the largest finite τ, at most a third of the
     chain (a third while τ is unknown)."""
@@ -190,6 +204,7 @@ def run_sampler(
     backend=None,
     progress=False,
     start=None,
+    coordinates=None,
 ) -> SamplerRun:
     """Sample ``log_posterior`` (unbounded coordinates, emcee blob convention) to convergence.
 
@@ -206,6 +221,10 @@ def run_sampler(
         Show a progress bar.
     start : array (ndim,), optional
         Centre of the initial ball (unbounded); default the MAP estimate.
+    coordinates : str, optional
+        What the sampled coordinates are (see :meth:`.parameters.ParameterSpace.signature`);
+        stored with an HDF5 backend's chain, and a chain stored under another is not
+        resumed.
     """
     s = SamplerSettings() if settings is None else settings
     ndim = space.ndim
@@ -221,6 +240,8 @@ def run_sampler(
     sampler = emcee.EnsembleSampler(
         n_walkers, ndim, log_posterior, moves=moves, backend=backend, vectorize=True
     )
+    if coordinates is not None and isinstance(backend, emcee.backends.HDFBackend):
+        _check_coordinates(backend, coordinates, resume)
     log_prob = lambda u: log_posterior(u)[:, 0]  # noqa: E731
     flags = []
     if resume:
