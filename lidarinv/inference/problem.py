@@ -48,11 +48,12 @@ class InversionSettings:
         Shot-noise variance per unit signal, g.
     discrepancy : float
         η, the model-discrepancy sd as a fraction of the signal (the one random arrangement
-        of trees in a footprint against the expected stand); 0.2 is the median per-bin
-        spread of explicit realisations of a GEDI footprint around the expected waveform.
+        of trees in a footprint against the expected stand); explicit realisations of
+        GEDI footprints spread by a median 0.22–0.32 per crown bin around the expected
+        waveform (``studies/discrepancy.py``), and 0.2 recovered best in the study.
     discrepancy_model : str
         Which signal the discrepancy is a fraction of (:mod:`.discrepancy`): ``model``,
-        each row's model waveform, or ``observed``, the shot's smoothed signal.
+        each row's model waveform, or ``observed``, the shot's own signal.
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
         cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None
