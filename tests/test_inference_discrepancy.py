@@ -84,7 +84,7 @@ def test_observed_discrepancy_follows_the_shot_and_not_the_parameters(rng):
     z = np.arange(-5.0, 40.0, 0.15)
     signal = 120.0 * np.exp(-0.5 * (z / 0.8) ** 2)
     samples = 50.0 + signal + rng.normal(0.0, 2.0, z.size)
-    variance = DISCREPANCY_MODELS["observed"](samples, 50.0, 2.0, 1.0, 0.2)
+    variance = DISCREPANCY_MODELS["observed"](samples, 50.0, 1.0, 0.2)
     peak = np.argmax(signal)
     assert variance[peak] == pytest.approx((0.2 * 120.0) ** 2, rel=0.1)
     assert np.all(variance[z > 10.0] < (0.2 * 4 * 2.0) ** 2)  # noise alone adds little

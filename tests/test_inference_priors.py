@@ -50,7 +50,7 @@ def test_transform_round_trip_and_jacobian(prior):
     assert np.all(np.isfinite(log_jac_far)) and np.all(np.isfinite(x_far))
 
 
-def test_prior_table_matches_each_prior_column_by_column(rng):
+def test_mixed_prior_table_matches_each_prior_column_by_column(rng):
     table = PriorTable(PRIORS)
     u = rng.normal(0.0, 4.0, (50, len(PRIORS)))
     u[0] = [-800.0, 800.0, -800.0, 800.0]

@@ -25,14 +25,12 @@ def model_variance(scale, gain, signal) -> np.ndarray:
     return (scale * np.asarray(gain)[:, None] * signal) ** 2
 
 
-def observed_variance(samples, baseline, noise_sigma, smooth_bins, scale) -> np.ndarray:
+def observed_variance(samples, baseline, smooth_bins, scale) -> np.ndarray:
     """(η·ŝ)² (DN², one per bin) from the observed ``samples`` (DN).
 
     ŝ is the observation less its noise mean ``baseline``, smoothed by a Gaussian of
-    ``smooth_bins`` and clipped at zero; ``noise_sigma`` is unused (the noise variance
-    is already in the likelihood).
+    ``smooth_bins`` and clipped at zero.
     """
-    del noise_sigma
     signal = gaussian_filter1d(np.asarray(samples, float) - baseline, max(smooth_bins, 0.5))
     return (scale * np.clip(signal, 0.0, None)) ** 2
 

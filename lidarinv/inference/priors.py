@@ -80,8 +80,22 @@ class PriorTable:
         return x, log_jac + np.where(self._log, w, 0.0)
 
 
+class _OnePrior:
+    """log_pdf and from_unbounded of a single prior, through its :class:`PriorForm`."""
+
+    def log_pdf(self, x):
+        """Log density at ``x`` (parameter units); −inf outside the support."""
+        x = np.asarray(x, float)
+        return PriorTable([self]).log_pdf(x[..., None])[..., 0]
+
+    def from_unbounded(self, u):
+        """Parameter values and log|dx/du| for unbounded values ``u``."""
+        x, log_jac = PriorTable([self]).from_unbounded(np.asarray(u, float)[..., None])
+        return x[..., 0], log_jac[..., 0]
+
+
 @dataclass(frozen=True)
-class Uniform:
+class Uniform(_OnePrior):
     """Uniform on [lower, upper] (parameter units)."""
 
     lower: float
@@ -90,20 +104,8 @@ class Uniform:
     def __post_init__(self):
         _check_bounds(self.lower, self.upper, "uniform")
 
-    def log_pdf(self, x):
-        x = np.asarray(x, float)
-        inside = (x >= self.lower) & (x <= self.upper)
-        return np.where(inside, -np.log(self.upper - self.lower), -np.inf)
-
     def to_unbounded(self, x):
         return logit((np.asarray(x, float) - self.lower) / (self.upper - self.lower))
-
-    def from_unbounded(self, u):
-        """Parameter values and log|dx/du| for unbounded values ``u``."""
-        u = np.asarray(u, float)
-        span = self.upper - self.lower
-        x = self.lower + span * expit(u)
-        return x, np.log(span) + log_expit(u) + log_expit(-u)
 
     def sample(self, rng, size):
         return rng.uniform(self.lower, self.upper, size)
@@ -119,7 +121,7 @@ class Uniform:
 
 
 @dataclass(frozen=True)
-class LogUniform:
+class LogUniform(_OnePrior):
     """Log-uniform on [lower, upper] (parameter units, both > 0)."""
 
     lower: float
@@ -130,22 +132,9 @@ class LogUniform:
         if self.lower <= 0:
             raise ValueError(f"log-uniform prior needs lower > 0, got {self.lower}")
 
-    def log_pdf(self, x):
-        x = np.asarray(x, float)
-        inside = (x >= self.lower) & (x <= self.upper)
-        norm = np.log(np.log(self.upper / self.lower))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(inside, -np.log(np.where(inside, x, 1.0)) - norm, -np.inf)
-
     def to_unbounded(self, x):
         x = np.asarray(x, float)
         return logit(np.log(x / self.lower) / np.log(self.upper / self.lower))
-
-    def from_unbounded(self, u):
-        u = np.asarray(u, float)
-        span = np.log(self.upper / self.lower)
-        log_x = np.log(self.lower) + span * expit(u)
-        return np.exp(log_x), log_x + np.log(span) + log_expit(u) + log_expit(-u)
 
     def sample(self, rng, size):
         return np.exp(rng.uniform(np.log(self.lower), np.log(self.upper), size))
@@ -168,7 +157,7 @@ class LogUniform:
 
 
 @dataclass(frozen=True)
-class TruncatedNormal:
+class TruncatedNormal(_OnePrior):
     """Normal N(mean, sd²) truncated to [lower, upper] (parameter units)."""
 
     mean: float
@@ -185,15 +174,7 @@ class TruncatedNormal:
         a, b = (self.lower - self.mean) / self.sd, (self.upper - self.mean) / self.sd
         return np.log(self.sd) + np.log(ndtr(b) - ndtr(a)) + 0.5 * np.log(2 * np.pi)
 
-    def log_pdf(self, x):
-        x = np.asarray(x, float)
-        inside = (x >= self.lower) & (x <= self.upper)
-        y = (x - self.mean) / self.sd
-        with np.errstate(invalid="ignore"):
-            return np.where(inside, -0.5 * y * y - self._log_norm(), -np.inf)
-
     to_unbounded = Uniform.to_unbounded
-    from_unbounded = Uniform.from_unbounded
 
     def form(self):
         return PriorForm(
@@ -222,7 +203,7 @@ class TruncatedNormal:
 
 
 @dataclass(frozen=True)
-class TruncatedLogNormal:
+class TruncatedLogNormal(_OnePrior):
     """Log-normal with median ``median`` and log-sd ``sd_log``, truncated to [lower, upper]
     (parameter units, lower > 0). Sampled on the log scale, so that a quantity identified
     only as a product with another (ρv/ρg against the gain) lies on a straight ridge."""
@@ -244,17 +225,7 @@ class TruncatedLogNormal:
         a, b = self._standard(self.lower), self._standard(self.upper)
         return np.log(self.sd_log) + np.log(ndtr(b) - ndtr(a)) + 0.5 * np.log(2 * np.pi)
 
-    def log_pdf(self, x):
-        x = np.asarray(x, float)
-        inside = (x >= self.lower) & (x <= self.upper)
-        norm = self._log_norm()
-        with np.errstate(divide="ignore", invalid="ignore"):
-            safe = np.where(inside, x, 1.0)
-            y = self._standard(safe)
-            return np.where(inside, -np.log(safe) - 0.5 * y * y - norm, -np.inf)
-
     to_unbounded = LogUniform.to_unbounded
-    from_unbounded = LogUniform.from_unbounded
 
     def form(self):
         w_lower, w_upper = np.log(self.lower), np.log(self.upper)

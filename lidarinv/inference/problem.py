@@ -164,9 +164,7 @@ def _fixed_discrepancy(window, analysis, settings, smooth_bins):
         ) from None
     if function is None:
         return None
-    return function(
-        window.samples, analysis.noise_mean, analysis.noise_sigma, smooth_bins, settings.discrepancy
-    )
+    return function(window.samples, analysis.noise_mean, smooth_bins, settings.discrepancy)
 
 
 def build_problem(obs: Observation, settings: InversionSettings | None = None) -> InversionProblem:
