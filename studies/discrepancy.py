@@ -90,7 +90,7 @@ def main():
         canopy, ground, heights = realisations(params, instrument, args.realisations, rng)
         mean, var = canopy.mean(axis=0), canopy.var(axis=0)
         crowns = crowns_spanning(params, heights, area)
-        in_crowns = (mean > 0.02 * mean.max()) & (heights > params.understory_height + 1.0)
+        in_crowns = (mean > 0.02 * mean.max()) & (crowns > 0)
         ratio = var[in_crowns] * np.maximum(crowns[in_crowns], 1.0) / mean[in_crowns] ** 2
         energy = ground.sum(axis=1)
         model = ExpectedWaveformModel(instrument, heights, params)
@@ -105,7 +105,8 @@ def main():
             "ground_cv_model": float(np.sqrt(gap_cv2(gap, crown_area, area))[0]),
         }
         ax.plot(np.sqrt(var), heights, label="realisations sd")
-        ax.plot(mean / np.sqrt(np.maximum(crowns, 1.0)), heights, "--", label="mean / √N(z)")
+        poisson = np.where(in_crowns, mean / np.sqrt(np.maximum(crowns, 1.0)), np.nan)
+        ax.plot(poisson, heights, "--", label="mean / √N(z), crown heights")
         ax.set_title(name)
         ax.set_xlabel("canopy return sd (apparent reflectance per bin)")
     axes[0].set_ylabel("height above ground (m)")

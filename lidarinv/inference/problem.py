@@ -49,7 +49,7 @@ class InversionSettings:
     discrepancy : float
         η, the model-discrepancy sd as a fraction of the signal (the one random arrangement
         of trees in a footprint against the expected stand); explicit realisations of
-        GEDI footprints spread by a median 0.22–0.32 per crown bin around the expected
+        GEDI footprints spread by a median 0.22–0.34 per crown bin around the expected
         waveform (``studies/discrepancy.py``), and 0.2 recovered best in the study.
     discrepancy_model : str
         Which signal the discrepancy is a fraction of (:mod:`.discrepancy`): ``model``,
