@@ -39,7 +39,14 @@ from lidarinv.inference.stand_mapping import TOP_SDS  # noqa: E402
 from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot  # noqa: E402
 from lidarinv.observe.analyse import analyse  # noqa: E402
 
-QUANTITIES = ("cover", "pai", "top_height", "mean_height", "ground_elevation")
+QUANTITIES = (
+    "cover",
+    "pai",
+    "top_height",
+    "footprint_top_height",
+    "mean_height",
+    "ground_elevation",
+)
 
 
 def draw_recipe(rng) -> ShotRecipe:
@@ -98,6 +105,12 @@ def _coverage(rows, name, lo, hi):
     return float(np.mean(inside))
 
 
+def _known(rows, name):
+    """Rows with a true value of ``name`` (the footprint's tallest stem only exists in an
+    explicit stand)."""
+    return [r for r in rows if np.isfinite(r["truth"].get(name, np.nan))]
+
+
 def summarise(rows):
     good = [r for r in rows if "posterior" in r]
     n = len(good)
@@ -110,12 +123,16 @@ def summarise(rows):
     }
     out["binomial_95_range"] = {"68": bounds[0.68], "90": bounds[0.90]}
     for name in QUANTITIES:
-        truth = np.array([r["truth"][name] for r in good])
-        median = np.array([r["posterior"][name]["median"] for r in good])
+        known = _known(good, name)
+        if not known:
+            continue
+        truth = np.array([r["truth"][name] for r in known])
+        median = np.array([r["posterior"][name]["median"] for r in known])
         err = median - truth
         out["quantities"][name] = {
-            "coverage_68": _coverage(good, name, "p16", "p84"),
-            "coverage_90": _coverage(good, name, "p05", "p95"),
+            "n": len(known),
+            "coverage_68": _coverage(known, name, "p16", "p84"),
+            "coverage_90": _coverage(known, name, "p05", "p95"),
             "bias": float(err.mean()),
             "rmse": float(np.sqrt(np.mean(err**2))),
         }
@@ -123,13 +140,17 @@ def summarise(rows):
     if direct_ok:
         pairs = {
             "top_height": ("canopy_height", "top_height"),
+            "footprint_top_height": ("canopy_height", "footprint_top_height"),
             "cover": ("cover", "cover"),
             "ground_elevation": ("ground", "ground_elevation"),
         }
         for name, (direct_key, truth_key) in pairs.items():
-            d = np.array([r["direct"][direct_key] for r in direct_ok])
-            t = np.array([r["truth"][truth_key] for r in direct_ok])
-            m = np.array([r["posterior"][name]["median"] for r in direct_ok])
+            both = _known(direct_ok, truth_key)
+            if not both:
+                continue
+            d = np.array([r["direct"][direct_key] for r in both])
+            t = np.array([r["truth"][truth_key] for r in both])
+            m = np.array([r["posterior"][name]["median"] for r in both])
             keep = np.isfinite(d)
             out["quantities"][name]["direct_rmse"] = float(np.sqrt(np.mean((d - t)[keep] ** 2)))
             out["quantities"][name]["direct_bias"] = float(np.mean((d - t)[keep]))
@@ -150,8 +171,14 @@ def plot(rows, folder):
     good = [r for r in rows if "posterior" in r]
     fig, axes = plt.subplots(1, len(QUANTITIES), figsize=(3.2 * len(QUANTITIES), 3.4))
     for ax, name in zip(axes, QUANTITIES):
-        t = np.array([r["truth"][name] for r in good])
-        q = {k: np.array([r["posterior"][name][k] for r in good]) for k in ("p05", "median", "p95")}
+        known = _known(good, name)
+        if not known:
+            ax.set_axis_off()
+            continue
+        t = np.array([r["truth"][name] for r in known])
+        q = {
+            k: np.array([r["posterior"][name][k] for r in known]) for k in ("p05", "median", "p95")
+        }
         ax.errorbar(t, q["median"], yerr=[q["median"] - q["p05"], q["p95"] - q["median"]],
                     fmt="o", ms=3, lw=0.7, alpha=0.7)  # fmt: skip
         span = [min(t.min(), q["p05"].min()), max(t.max(), q["p95"].max())]

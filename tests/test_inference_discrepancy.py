@@ -3,6 +3,7 @@ random stands."""
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from forward import derived
 from forward.engine import WaveformSimulator
@@ -17,7 +18,7 @@ from lidarinv.inference.discrepancy import (
     model_variance,
 )
 from lidarinv.inference.stand_mapping import TOP_SDS, StandMapping, default_template
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
+from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot, tallest_within
 
 STAND = SYNTHETIC_SHOTS["gedi-mixed"].params
 
@@ -98,3 +99,32 @@ def test_observed_discrepancy_follows_the_shot_and_not_the_parameters(rng):
     assert post.fixed_discrepancy.shape == post.data.axis.shape
     with pytest.raises(ValueError, match="unknown discrepancy model"):
         build_problem(shot, InversionSettings(discrepancy_model="kriging"))
+
+
+def test_tallest_stem_in_a_footprint_matches_realised_stands(rng):
+    """The predictive draw of a footprint's tallest stem follows the tallest stem within
+    the footprint radius of explicit realisations (two-sample KS), and lies below the
+    height distribution's upper end, which a footprint's few stems rarely reach."""
+    mapping = StandMapping(default_template())
+    radius = 12.5
+    realised = []
+    for _ in range(300):
+        stand = realise(STAND, 40.0, rng)
+        realised.append(tallest_within(stand, (20.0, 20.0), radius / 2.0))
+    values = {k: np.repeat(v, 3000) for k, v in _parameters(STAND).items()}
+    drawn = mapping.tallest_in_area(values, np.pi * radius**2, rng.uniform(size=3000))
+    assert stats.ks_2samp(realised, drawn).pvalue > 1e-3
+    expected = derived.expected_max_height(STAND, 2.0 * radius)  # ∫(1 − e^(−λA·S)) dh
+    assert abs(np.mean(drawn) - expected) < 4.0 * np.std(drawn) / np.sqrt(drawn.size)
+    top = STAND.height_mean + TOP_SDS * STAND.height_sd
+    assert np.all(drawn <= top) and np.median(drawn) < top - 0.2 * STAND.height_sd
+    # no stem at all: a stand too sparse to hold one in the area gives the ground
+    sparse = {**values, "density_m2": np.full(3000, 1e-6)}
+    assert np.mean(mapping.tallest_in_area(sparse, 1.0, rng.uniform(size=3000)) == 0) > 0.99
+
+
+def test_synthetic_shot_knows_its_footprint_top(rng):
+    recipe = SYNTHETIC_SHOTS["gedi-mixed"]
+    explicit = synthetic_shot(recipe, rng)
+    assert 0 < explicit.truth["footprint_top_height"] <= explicit.truth["top_height"]
+    assert np.isnan(synthetic_shot(recipe, rng, explicit=False).truth["footprint_top_height"])

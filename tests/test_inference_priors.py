@@ -165,7 +165,9 @@ def test_joint_coordinates_keep_the_cover_pai_prior():
 def test_parameter_space_samples_cover_and_pai_jointly_only_when_both_are_free():
     space = default_space(_nuisance())
     rng = np.random.default_rng(8)
-    x = space.sample_prior(rng, 50)
+    x = space.sample_prior(rng, 200)
+    top, sd = (x[:, space.names.index(k)] for k in ("top_height", "height_sd"))
+    x = x[top > 2.0 * sd][:50]  # a stand (the crown-base coordinate needs a mean height)
     u = space.to_unbounded(x)
     back, _ = space.from_unbounded(u)
     np.testing.assert_allclose(back, x, rtol=1e-10)

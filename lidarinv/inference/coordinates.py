@@ -1,20 +1,31 @@
-"""Joint sampling coordinates for crown cover and PAI, which the waveform ties together.
+"""Sampling coordinates that straighten the posterior's ridges.
 
-A waveform fixes the canopy's interception, −ln P̄(0) ≈ X·(1 − exp(−a·Lc)), where
-X = −ln(1 − cover) = λ·E[crown area] and Lc = PAI / X is the foliage area per unit of
-crown-projected area. Few dense crowns (small X, large Lc) and many sparse ones (large X,
-small Lc) give the same interception, so in (cover, PAI) the posterior follows an L-shaped
-ridge that ensemble moves cross slowly. The coordinates
+Only the coordinates the sampler moves in change; the prior stays the one set on the
+parameters, through the Jacobian of each map.
+
+**Crown cover and PAI**, which the waveform ties together. A waveform fixes the canopy's
+interception, −ln P̄(0) ≈ X·(1 − exp(−a·Lc)), where X = −ln(1 − cover) = λ·E[crown area]
+and Lc = PAI / X is the foliage area per unit of crown-projected area. Few dense crowns
+(small X, large Lc) and many sparse ones (large X, small Lc) give the same interception,
+so in (cover, PAI) the posterior follows an L-shaped ridge that ensemble moves cross
+slowly. The coordinates
 
     s = ln Y,  Y = X·(1 − exp(−a·Lc)),      t = ln Lc
 
-turn that ridge into a nearly straight line along t at fixed s. Only the sampling
-coordinates change: the prior stays the one set on cover and PAI, through the Jacobian
+turn that ridge into a nearly straight line along t at fixed s, with the Jacobian
 
     |∂(cover, PAI) / ∂(s, t)| = exp(−X)·X²·Lc.
+
+**Crown length ratio ℓ** against the mean tree height H̄ = top − TOP_SDS·sd. The waveform
+fixes the crown-base height of the mean tree, B = (1 − ℓ)·H̄, far better than either
+factor: in (top, sd, ℓ) the posterior bends along B = const (ℓ against H̄ correlates at
+0.94 on a GEDI shot). Sampling b = ln B instead of ℓ straightens it; |∂ℓ/∂b| = B / H̄.
 """
 
 import numpy as np
+
+#: Ridge-straightening coordinates by name (see :class:`.parameters.ParameterSpace`).
+RIDGE_COORDINATES = ("cover-pai", "crown-base")
 
 #: a in 1 − exp(−a·Lc): G·Ω for a spherical leaf-angle distribution and no clumping.
 INTERCEPTION_SLOPE = 0.5
@@ -40,3 +51,22 @@ def to_cover_pai(s, t, slope=INTERCEPTION_SLOPE):
         pai = lc * x
         log_jac = -x + 2.0 * np.log(x) + t
     return cover, pai, log_jac
+
+
+def crown_base_from_ratio(ratio, mean_height):
+    """b = ln((1 − ℓ)·H̄) from the crown length ratio (1) and mean tree height (m);
+    NaN where H̄ ≤ 0 or ℓ ∉ [0, 1)."""
+    ratio, mean_height = np.asarray(ratio, float), np.asarray(mean_height, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        base = np.log((1.0 - ratio) * mean_height)
+    bad = ~((ratio >= 0) & (ratio < 1) & (mean_height > 0))
+    return np.where(bad, np.nan, base)
+
+
+def ratio_from_crown_base(b, mean_height):
+    """Crown length ratio ℓ = 1 − exp(b)/H̄ and log|∂ℓ/∂b|; NaN where H̄ ≤ 0."""
+    mean_height = np.asarray(mean_height, float)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        mean_height = np.where(mean_height > 0, mean_height, np.nan)
+        relative = np.exp(b) / mean_height
+        return 1.0 - relative, np.log(relative)

@@ -57,6 +57,23 @@ def invert_shot(
     return collect_result(problem, run, rng)
 
 
+#: Derived quantity: the tallest stem within the footprint, a posterior-predictive draw.
+FOOTPRINT_TOP = "footprint_top_height"
+
+
+def footprint_top_height(problem: InversionProblem, x, density_per_ha, rng) -> np.ndarray:
+    """Height (m) of the tallest stem within the footprint (its 1/e² radius, 2σf) per
+    posterior sample: the stand's parameters fix the height distribution, and one
+    footprint holds one Poisson draw of stems from it, whose tallest is drawn here.
+    This, not ``top_height`` (the distribution's upper end), is what the waveform's
+    canopy top and RH98-style metrics measure."""
+    values = problem.space.values(x)
+    values["density_m2"] = np.asarray(density_per_ha) * 1e-4
+    radius = 2.0 * problem.instrument.footprint_sigma_m
+    uniform = rng.uniform(size=x.shape[0])
+    return problem.log_posterior.mapping.tallest_in_area(values, np.pi * radius**2, uniform)
+
+
 def _flat(array, run: SamplerRun):
     return array[run.burn :: run.thin].reshape(-1, *array.shape[2:])
 
@@ -69,6 +86,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     log_prob = _flat(run.log_prob, run)
     blobs = _flat(run.blobs, run)
     derived = {name: blobs[:, i] for i, name in enumerate(BLOB_NAMES)}
+    derived[FOOTPRINT_TOP] = footprint_top_height(problem, x, derived["density"], rng)
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
     terms = post.evaluate(x[pick], keep_signal=True)
     good = np.isfinite(terms.log_posterior)
@@ -88,7 +106,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     return InversionResult(
         shot_id=problem.observation.shot_id,
         parameter_names=space.names,
-        units={**{p.name: p.units for p in space.parameters}, **BLOB_UNITS},
+        units={**{p.name: p.units for p in space.parameters}, **BLOB_UNITS, FOOTPRINT_TOP: "m"},
         samples=x,
         log_prob=log_prob,
         derived=derived,

@@ -13,6 +13,7 @@ import numpy as np
 
 from . import coordinates
 from .priors import LogUniform, PriorTable, TruncatedLogNormal, Uniform, make_prior
+from .stand_mapping import TOP_SDS
 
 
 @dataclass(frozen=True)
@@ -95,14 +96,26 @@ class ParameterSpace:
     Parameters
     ----------
     parameters : iterable of Parameter
-    joint_cover_pai : bool
-        When both ``cover`` and ``pai`` are free, sample them in the joint coordinates of
-        :mod:`.coordinates` (the posterior is unchanged; only its sampling coordinates).
+    ridges : tuple of str
+        Ridge-straightening coordinates of :mod:`.coordinates` to sample in, from
+        :data:`.coordinates.RIDGE_COORDINATES`; each applies when its parameters are free
+        (the posterior is unchanged; only its sampling coordinates):
+
+        - ``cover-pai``: cover and PAI jointly, when both are free;
+        - ``crown-base``: the log crown-base height of the mean tree instead of
+          ``crown_length_ratio``, when that is free and ``top_height`` and ``height_sd``
+          are in the space (free or fixed).
     """
 
-    def __init__(self, parameters, joint_cover_pai=True):
+    def __init__(self, parameters, ridges=coordinates.RIDGE_COORDINATES):
         self.parameters = tuple(parameters)
-        self.joint_cover_pai = bool(joint_cover_pai)
+        self.ridges = tuple(ridges)
+        unknown = sorted(set(self.ridges) - set(coordinates.RIDGE_COORDINATES))
+        if unknown:
+            raise ValueError(
+                f"unknown sampling coordinates {unknown}; known: "
+                f"{list(coordinates.RIDGE_COORDINATES)}"
+            )
         names = [p.name for p in self.parameters]
         if len(set(names)) != len(names):
             raise ValueError(f"duplicate parameter names in {names}")
@@ -115,7 +128,15 @@ class ParameterSpace:
         both = "cover" in self.names and "pai" in self.names
         self._joint = (
             (self.names.index("cover"), self.names.index("pai"))
-            if both and joint_cover_pai
+            if both and "cover-pai" in self.ridges
+            else None
+        )
+        needed = ("crown_length_ratio", "top_height", "height_sd")
+        self._base = (
+            self.names.index("crown_length_ratio")
+            if "crown-base" in self.ridges
+            and "crown_length_ratio" in self.names
+            and set(needed) <= set(names)
             else None
         )
 
@@ -126,6 +147,8 @@ class ParameterSpace:
     def signature(self) -> str:
         """The sampled coordinates, for labelling stored chains: free names and transforms."""
         joint = "cover-pai-joint-v1" if self._joint is not None else "per-parameter"
+        if self._base is not None:
+            joint += ", crown-base-v1"
         priors = ";".join(f"{p.name}:{p.prior.describe()}" for p in self.free)
         return f"lidarinv logit transforms, {joint}; {priors}"
 
@@ -151,12 +174,14 @@ class ParameterSpace:
         """Physical values (n, ndim) and log|Jacobian| (n,) from unbounded coordinates."""
         u = np.atleast_2d(np.asarray(u, float))
         x, log_jac = self._priors.from_unbounded(u)
-        if self._joint is None:
-            return x, log_jac.sum(axis=1)
-        c, a = self._joint
-        log_jac[:, [c, a]] = 0.0
-        x[:, c], x[:, a], joint_log_jac = coordinates.to_cover_pai(u[:, c], u[:, a])
-        return x, log_jac.sum(axis=1) + joint_log_jac
+        if self._joint is not None:
+            c, a = self._joint
+            x[:, c], x[:, a], log_jac[:, c] = coordinates.to_cover_pai(u[:, c], u[:, a])
+            log_jac[:, a] = 0.0
+        if self._base is not None:
+            r = self._base
+            x[:, r], log_jac[:, r] = coordinates.ratio_from_crown_base(u[:, r], self._mean(x))
+        return x, log_jac.sum(axis=1)
 
     def to_unbounded(self, x):
         x = np.atleast_2d(np.asarray(x, float))
@@ -165,7 +190,18 @@ class ParameterSpace:
         if self._joint is not None:
             c, a = self._joint
             u[:, c], u[:, a] = coordinates.from_cover_pai(x[:, c], x[:, a])
+        if self._base is not None:
+            r = self._base
+            u[:, r] = coordinates.crown_base_from_ratio(x[:, r], self._mean(x))
         return u
+
+    def _mean(self, x):
+        """Mean tree height (m) of rows x: top − TOP_SDS·sd, free or fixed."""
+        v = {
+            name: x[:, self.names.index(name)] if name in self.names else self.by_name[name].fixed
+            for name in ("top_height", "height_sd")
+        }
+        return v["top_height"] - TOP_SDS * v["height_sd"]
 
     def sample_prior(self, rng, size) -> np.ndarray:
         return np.column_stack([p.prior.sample(rng, size) for p in self.free])
@@ -179,7 +215,7 @@ class ParameterSpace:
         for p in self.parameters:
             change = changes.get(p.name, {})
             out.append(replace(p, **change) if change else p)
-        return ParameterSpace(out, self.joint_cover_pai)
+        return ParameterSpace(out, self.ridges)
 
     def describe(self) -> list:
         return [
@@ -194,7 +230,11 @@ class ParameterSpace:
         ]
 
 
-def default_space(nuisance_priors: dict, overrides: dict | None = None) -> ParameterSpace:
+def default_space(
+    nuisance_priors: dict,
+    overrides: dict | None = None,
+    ridges=coordinates.RIDGE_COORDINATES,
+) -> ParameterSpace:
     """The default parameterisation with shot-specific nuisance priors.
 
     Parameters
@@ -203,6 +243,8 @@ def default_space(nuisance_priors: dict, overrides: dict | None = None) -> Param
         Priors for every name in :data:`NUISANCE` except ``rho_ratio`` (optional).
     overrides : dict, optional
         ``{name: {"prior": prior, "fixed": value or None}}``, e.g. from a priors file.
+    ridges : tuple of str
+        Sampling coordinates (see :class:`ParameterSpace`).
     """
     priors = {**DEFAULT_STRUCTURE_PRIORS, "rho_ratio": DEFAULT_RHO_RATIO_PRIOR, **nuisance_priors}
     params = []
@@ -210,7 +252,7 @@ def default_space(nuisance_priors: dict, overrides: dict | None = None) -> Param
         if name not in priors:
             raise ValueError(f"no prior given for {name}")
         params.append(Parameter(name, units, priors[name], DEFAULT_FIXED.get(name), description))
-    space = ParameterSpace(params)
+    space = ParameterSpace(params, ridges)
     return space.with_changes(overrides) if overrides else space
 
 

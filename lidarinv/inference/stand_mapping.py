@@ -180,6 +180,23 @@ class StandMapping:
         taller = self.family.sf(z, mean, sd, t) - self.family.sf(base, mean, sd, t)
         return v["density_m2"][:, None] * np.maximum(taller, 0.0)
 
+    def tallest_in_area(self, v, area, uniform) -> np.ndarray:
+        """Height (m) of the tallest stem among those of a Poisson stand on ``area`` (m²),
+        one draw per row from uniform variates ``uniform`` (n,); 0 where no stem stands.
+
+        With N ~ Poisson(λ·area) stems of height survival S(h), the tallest one has
+        P(max ≤ h) = exp(−λ·area·S(h)), so a draw solves S(h) = −ln U / (λ·area).
+        ``v`` holds ``density_m2`` (n,) besides the parameters. The mean of these draws
+        is :func:`forward.derived.expected_max_height`.
+        """
+        mean = v["top_height"] - TOP_SDS * v["height_sd"]
+        with np.errstate(divide="ignore"):
+            tail = -np.log(uniform) / (v["density_m2"] * area)
+        some = tail < 1.0
+        out = np.zeros(mean.shape)
+        out[some] = self.family.isf(tail[some], mean[some], v["height_sd"][some], self.truncation)
+        return out
+
     def _dominant_height(self, mean, sd, density):
         """Mean height of the DOMINANT_PER_HA tallest stems per hectare (all if fewer)."""
         tail = np.clip(DOMINANT_PER_HA / density, 1e-9, 1.0)

@@ -85,6 +85,13 @@ def true_values(params: StandParams, gain: float, baseline: float, noise_sigma: 
     }
 
 
+def tallest_within(stand, centre, footprint_sigma_m) -> float:
+    """Height (m) of the tallest stem within the footprint's 1/e² radius (2σf) of
+    ``centre``; 0 if none."""
+    inside = np.hypot(stand.x - centre[0], stand.y - centre[1]) <= 2.0 * footprint_sigma_m
+    return float(np.max(stand.height[inside], initial=0.0))
+
+
 def synthetic_shot(
     recipe: ShotRecipe, rng: np.random.Generator, explicit=True, shot_id=0, heights=None
 ):
@@ -106,9 +113,11 @@ def synthetic_shot(
             stand, (side / 2, side / 2), heights, ground, rho_v, understory
         )
         signal = waveform.samples
+        footprint_top = tallest_within(stand, (side / 2, side / 2), instrument.footprint_sigma_m)
     else:
         model = ExpectedWaveformModel(instrument, heights, p)
         signal = model(model.vector(p))[0]
+        footprint_top = np.nan  # the expected stand holds no particular trees
     obs = observe(
         signal,
         heights=heights,
@@ -120,5 +129,6 @@ def synthetic_shot(
     )
     obs.truth.update(true_values(p, recipe.gain, recipe.baseline, recipe.noise_sigma))
     obs.truth["ground_elevation"] = 0.0
+    obs.truth["footprint_top_height"] = footprint_top
     obs.truth.pop("signal", None)
     return obs
