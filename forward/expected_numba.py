@@ -131,14 +131,23 @@ def _kernel():
     return _COMPILED[0]
 
 
+def _as_kernel_array(x, shape):
+    """``x`` as a C-contiguous float64 array of ``shape`` (no copy if it already is one)."""
+    if (
+        isinstance(x, np.ndarray)
+        and x.shape == shape
+        and x.dtype == np.float64
+        and x.flags.c_contiguous
+    ):
+        return x
+    return np.ascontiguousarray(np.broadcast_to(x, shape), dtype=np.float64)
+
+
 def add_tree_depth(g, lo, step, a, b, ku, w, z, depth):
     """Compiled twin of :func:`forward.expected_depth.add_tree_depth`: the same arguments
     (less the numpy path's table options) and the same result, ``depth`` updated in place.
     """
     n, n_nodes = g.shape[0], np.shape(a)[-1]
     shapes = [g.shape, (n,), (n,), *[(n, n_nodes)] * 4, depth.shape]
-    arrays = [
-        np.ascontiguousarray(np.broadcast_to(x, shape), dtype=np.float64)
-        for x, shape in zip((g, lo, step, a, b, ku, w, z), shapes)
-    ]
+    arrays = [_as_kernel_array(x, shape) for x, shape in zip((g, lo, step, a, b, ku, w, z), shapes)]
     _kernel()(*arrays, depth)

@@ -4,7 +4,8 @@ Each footprint is drawn from random stand parameters, realised as an **explicit*
 stand, simulated with the explicit 3-D engine and observed with GEDI-like noise; the
 inversion then uses the expected-waveform model, so the random tree arrangement is a
 real model error. ``--inverse-crime`` observes the expected waveform instead. For cover,
-PAI, top height, mean height and ground elevation the study reports the coverage of the
+PAI, top height (the height distribution's upper end), the footprint's tallest stem
+(explicit stands only), mean height and ground elevation the study reports the coverage of the
 68 % and 90 % intervals (with the binomial 95 % range expected at that sample size), the
 bias and RMSE of the posterior median, and the same errors of the direct metrics of
 ``lidarinv.observe.analyse`` on the same waveforms (canopy height above the ground peak,

@@ -47,8 +47,11 @@ def test_crown_base_coordinate_keeps_the_ratio_prior(mean_height):
     assert np.trapezoid(density, b) == pytest.approx(1.0, abs=1e-4)
 
 
+BOTH = ("cover-pai", "crown-base")
+
+
 def test_space_samples_the_crown_base_of_the_mean_tree():
-    space = default_space(_nuisance())
+    space = default_space(_nuisance(), ridges=BOTH)
     assert "crown-base" in space.signature()
     r, top, sd = (space.names.index(k) for k in ("crown_length_ratio", "top_height", "height_sd"))
     x = space.sample_prior(np.random.default_rng(5), 400)
@@ -66,19 +69,21 @@ def test_space_samples_the_crown_base_of_the_mean_tree():
 
 
 def test_crown_base_uses_a_fixed_height_and_can_be_turned_off():
-    fixed_top = default_space(_nuisance()).with_changes({"top_height": {"fixed": 25.0}})
+    fixed_top = default_space(_nuisance(), ridges=BOTH)
+    fixed_top = fixed_top.with_changes({"top_height": {"fixed": 25.0}})
     r, sd = fixed_top.names.index("crown_length_ratio"), fixed_top.names.index("height_sd")
     x = fixed_top.sample_prior(np.random.default_rng(6), 20)
     x[:, sd] = np.minimum(x[:, sd], 10.0)
     u = fixed_top.to_unbounded(x)
     np.testing.assert_allclose(np.exp(u[:, r]), (1.0 - x[:, r]) * (25.0 - 2.0 * x[:, sd]))
-    per_parameter = default_space(_nuisance(), ridges=("cover-pai",))
+    per_parameter = default_space(_nuisance())  # crown-base is opt-in
     assert "crown-base" not in per_parameter.signature()
     r = per_parameter.names.index("crown_length_ratio")
     x = per_parameter.sample_prior(np.random.default_rng(7), 5)
     prior = per_parameter.by_name["crown_length_ratio"].prior
     np.testing.assert_allclose(per_parameter.to_unbounded(x)[:, r], prior.to_unbounded(x[:, r]))
-    fixed_ratio = default_space(_nuisance()).with_changes({"crown_length_ratio": {"fixed": 0.4}})
+    fixed_ratio = default_space(_nuisance(), ridges=BOTH)
+    fixed_ratio = fixed_ratio.with_changes({"crown_length_ratio": {"fixed": 0.4}})
     assert "crown-base" not in fixed_ratio.signature()
     with pytest.raises(ValueError, match="unknown sampling coordinates"):
         default_space(_nuisance(), ridges=("crown-tip",))

@@ -27,6 +27,11 @@ import numpy as np
 #: Ridge-straightening coordinates by name (see :class:`.parameters.ParameterSpace`).
 RIDGE_COORDINATES = ("cover-pai", "crown-base")
 
+#: Those used by default. ``crown-base`` is opt-in: it shortened τ of the crown
+#: parameters a little but not the largest τ (``studies/sampling_coordinates.py``), and
+#: with 2500-step chains the recovery study came out no better (README).
+DEFAULT_RIDGES = ("cover-pai",)
+
 #: a in 1 − exp(−a·Lc): G·Ω for a spherical leaf-angle distribution and no clumping.
 INTERCEPTION_SLOPE = 0.5
 

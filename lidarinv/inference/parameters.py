@@ -107,7 +107,7 @@ class ParameterSpace:
           are in the space (free or fixed).
     """
 
-    def __init__(self, parameters, ridges=coordinates.RIDGE_COORDINATES):
+    def __init__(self, parameters, ridges=coordinates.DEFAULT_RIDGES):
         self.parameters = tuple(parameters)
         self.ridges = tuple(ridges)
         unknown = sorted(set(self.ridges) - set(coordinates.RIDGE_COORDINATES))
@@ -233,7 +233,7 @@ class ParameterSpace:
 def default_space(
     nuisance_priors: dict,
     overrides: dict | None = None,
-    ridges=coordinates.RIDGE_COORDINATES,
+    ridges=coordinates.DEFAULT_RIDGES,
 ) -> ParameterSpace:
     """The default parameterisation with shot-specific nuisance priors.
 

@@ -11,7 +11,7 @@ from forward.pulse import MeasuredPulse
 from lidarinv.observe.analyse import analyse
 from lidarinv.observe.observation import Observation
 
-from .coordinates import RIDGE_COORDINATES
+from .coordinates import DEFAULT_RIDGES
 from .discrepancy import DISCREPANCY_MODELS
 from .likelihood import WindowData
 from .parameters import DEFAULT_STRUCTURE_PRIORS, default_space, read_priors_file
@@ -64,7 +64,9 @@ class InversionSettings:
         Crown shapes mixed by ``cone_fraction``.
     ridges : tuple of str
         Ridge-straightening sampling coordinates (:mod:`.coordinates`; the posterior is
-        the same, the chains mix faster); ``()`` samples each parameter on its own.
+        the same, the chains mix faster): ``("cover-pai",)`` by default, ``("cover-pai",
+        "crown-base")`` adds the crown-base coordinate, ``()`` samples each parameter on
+        its own.
     priors : dict
         Parameter overrides ``{name: {"prior": …, "fixed": …}}`` (see
         :func:`.parameters.read_priors_file`).
@@ -84,7 +86,7 @@ class InversionSettings:
     discrepancy_model: str = "observed"
     favd_range: tuple | None = None
     shape_pair: tuple = ("cone", "ellipsoid")
-    ridges: tuple = RIDGE_COORDINATES
+    ridges: tuple = DEFAULT_RIDGES
     priors: dict = field(default_factory=dict)
     sampler: SamplerSettings = field(default_factory=SamplerSettings)
     model: ModelSettings = field(default_factory=ModelSettings)

@@ -37,7 +37,14 @@ class SamplerSettings:
     candidates : int
         Prior draws scored to pick the optimiser's starts.
     starts : int
-        Optimiser starts (the best candidates).
+        Optimiser starts (the best candidates), each run for ``screen_iterations``.
+    screen_iterations : int
+        L-BFGS iterations of each start before the best are polished.
+    polish : int
+        Screened starts, the best ones, run on to convergence. The best few of many
+        prior draws often share one basin, and a wrong basin is one the ensemble never
+        leaves: with 512 draws and 4 starts the optimum missed the true parameters' basin
+        by 13–505 in log-posterior on 5 of the 6 worst inverse-crime recovery shots.
     ball : float
         Scale of the initial ball: walkers start from N(MAP, ball²·Σ) with Σ the Laplace
         covariance at the MAP.
@@ -52,8 +59,10 @@ class SamplerSettings:
     tau_multiple: float = 50.0
     tau_tolerance: float = 0.05
     burn_taus: float = 5.0
-    candidates: int = 512
-    starts: int = 4
+    candidates: int = 4096
+    starts: int = 32
+    screen_iterations: int = 30
+    polish: int = 3
     ball: float = 1.0
     moves: tuple = (("de", 0.7), ("de-snooker", 0.1), ("stretch", 0.2))
 
@@ -119,8 +128,14 @@ def find_map(log_prob, space, rng, settings: SamplerSettings) -> MapEstimate:
     order = np.argsort(-np.where(np.isfinite(scores), scores, -np.inf))
     objective, counter = _batched_objective(log_prob)
     best = MapEstimate(draws[order[0]], float(scores[order[0]]), False, draws.shape[0])
-    for start in draws[order[: settings.starts]]:
-        result = minimize(objective, start, jac=True, method="L-BFGS-B", options={"maxiter": 400})
+    screen = {"maxiter": settings.screen_iterations}
+    screened = [
+        minimize(objective, start, jac=True, method="L-BFGS-B", options=screen)
+        for start in draws[order[: settings.starts]]
+    ]
+    screened.sort(key=lambda result: result.fun)
+    for start in screened[: settings.polish]:
+        result = minimize(objective, start.x, jac=True, method="L-BFGS-B", options={"maxiter": 400})
         value = -float(result.fun)
         if value > best.log_prob and result.fun < _PENALTY:
             best = MapEstimate(result.x, value, bool(result.success), 0)
