@@ -48,11 +48,23 @@ def evaluation_cost(problem, rng, batch=32, repeats=20):
     return best / batch
 
 
-def _run(settings, n, rng, name):
-    rows = []
-    for i in range(n):
-        obs = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng, shot_id=i)
-        problem = build_problem(obs, settings)
+def _run(settings, n, seed, name):
+    """Invert the first ``n`` shots that can be analysed; each shot and its inversion
+    draw from their own generators, so the shots do not depend on the inversion."""
+    rows, i = [], 0
+    shots = np.random.SeedSequence(seed)
+    while len(rows) < n:
+        shot_seed, run_seed = shots.spawn(2)
+        obs = synthetic_shot(
+            SYNTHETIC_SHOTS["gedi-mixed"], np.random.default_rng(shot_seed), shot_id=i
+        )
+        i += 1
+        try:
+            problem = build_problem(obs, settings)
+        except ValueError as error:  # e.g. a return that runs out of the window
+            print(name, "skipped:", error, flush=True)
+            continue
+        rng = np.random.default_rng(run_seed)
         per_row = evaluation_cost(problem, rng)
         start = time.perf_counter()
         result = invert_shot(obs, settings, rng=rng)
@@ -60,7 +72,7 @@ def _run(settings, n, rng, name):
         d = result.diagnostics
         rows.append(
             {
-                "shot": i,
+                "shot": obs.shot_id,
                 "seconds": seconds,
                 "steps": d["n_steps"],
                 "walkers": d["n_walkers"],
@@ -86,7 +98,7 @@ def main():
     for name in args.config:
         settings = replace(InversionSettings(), **CONFIGURATIONS[name])
         settings = replace(settings, sampler=replace(settings.sampler, max_steps=args.max_steps))
-        rows = _run(settings, args.n, np.random.default_rng(args.seed), name)
+        rows = _run(settings, args.n, args.seed, name)
         summary[name] = {
             "median_seconds": float(np.median([r["seconds"] for r in rows])),
             "converged_fraction": float(np.mean([r["converged"] for r in rows])),

@@ -9,11 +9,14 @@ PAI, top height (the height distribution's upper end), the footprint's tallest s
 68 % and 90 % intervals (with the binomial 95 % range expected at that sample size), the
 bias and RMSE of the posterior median, and the same errors of the direct metrics of
 ``lidarinv.observe.analyse`` on the same waveforms (canopy height above the ground peak,
-gap-based cover).
+gap-based cover). It also counts the shots whose chain never came within 5 of the true
+parameters' log-posterior: with ``--inverse-crime`` those are search failures.
 
     python studies/recovery.py [--n 200] [--max-steps 4000] [--workers 2]
                                [--inverse-crime] [--discrepancy 0.2]
                                [--discrepancy-model observed] [--seed 1] [--tag _NAME]
+                               [--map-search CANDIDATES STARTS SCREEN POLISH]
+                               [--truth study|prior]
 
 Writes studies/output/recovery[_inverse_crime]/{summary.json,shots.json,*.png}.
 """
@@ -34,9 +37,10 @@ import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
 from forward.stand_params import StandParams  # noqa: E402
-from lidarinv.inference import InversionSettings, invert_shot  # noqa: E402
+from lidarinv.inference import InversionSettings, build_problem, invert_shot  # noqa: E402
 from lidarinv.inference.discrepancy import DISCREPANCY_MODELS  # noqa: E402
-from lidarinv.inference.stand_mapping import TOP_SDS  # noqa: E402
+from lidarinv.inference.parameters import DEFAULT_STRUCTURE_PRIORS  # noqa: E402
+from lidarinv.inference.stand_mapping import TOP_SDS, StandMapping, default_template  # noqa: E402
 from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot  # noqa: E402
 from lidarinv.observe.analyse import analyse  # noqa: E402
 
@@ -72,10 +76,49 @@ def draw_recipe(rng) -> ShotRecipe:
     return ShotRecipe(params, gain=rng.uniform(4000.0, 12000.0), baseline=50.0, noise_sigma=2.0)
 
 
+#: The structural priors a ``--truth prior`` stand is drawn from (crown radius slope fixed).
+STRUCTURE_PRIORS = {k: p for k, p in DEFAULT_STRUCTURE_PRIORS.items() if k != "crown_radius_slope"}
+
+
+def draw_recipe_from_prior(rng) -> ShotRecipe:
+    """A stand whose structure is one draw of the inversion's own structural prior (the
+    nuisance parameters as in :func:`draw_recipe`): with truths drawn so, intervals that
+    sample the posterior correctly cover at their nominal rate."""
+    mapping = StandMapping(default_template())
+    while True:
+        v = {k: np.array([prior.sample(rng, 1)[0]]) for k, prior in STRUCTURE_PRIORS.items()}
+        v.update(crown_radius_slope=np.array([0.1]), rho_ratio=np.array([1.5]))
+        v["ground_elevation"] = np.zeros(1)
+        if mapping.valid(v)[0] and v["top_height"][0] < 50.0:
+            break
+    vectors, _ = mapping.model_vectors(v)
+    column = dict(zip(mapping.model_free, vectors[0]))
+    cone = float(v["cone_fraction"][0])
+    params = StandParams(
+        density=column["density"],
+        height_mean=column["height_mean"],
+        height_sd=column["height_sd"],
+        height_family="truncnorm",
+        height_truncation=TOP_SDS,
+        shape_mix={"cone": cone, "ellipsoid": 1.0 - cone},
+        crown_length_ratio=column["crown_length_ratio"],
+        favd=column["favd"],
+        understory_height=float(v["understory_height"][0]),
+        understory_lai=float(v["understory_lai"][0]),
+        ground_reflectance=0.3,
+        canopy_reflectance=0.3 * float(np.clip(rng.normal(1.5, 0.3), 0.8, 2.5)),
+    )
+    return ShotRecipe(params, gain=rng.uniform(4000.0, 12000.0), baseline=50.0, noise_sigma=2.0)
+
+
+#: Stand draws by name (``--truth``).
+RECIPES = {"study": draw_recipe, "prior": draw_recipe_from_prior}
+
+
 def one_shot(task):
-    index, seed, explicit, settings = task
+    index, seed, explicit, settings, truth = task
     rng = np.random.default_rng(seed)
-    recipe = draw_recipe(rng)
+    recipe = RECIPES[truth](rng)
     obs = synthetic_shot(recipe, rng, explicit=explicit, shot_id=index)
     truth = dict(obs.truth)
     row = {"shot": index, "truth": {k: truth[k] for k in (*QUANTITIES, "rho_ratio")}}
@@ -95,8 +138,19 @@ def one_shot(task):
     row["seconds"] = time.perf_counter() - start
     row["converged"] = result.converged
     row["max_tau"] = float(np.max(result.diagnostics["tau"]))
+    row["log_prob"] = {"best_in_chain": result.diagnostics["map_log_prob"]}
+    row["log_prob"]["truth"] = truth_log_prob(obs, settings)
     row["posterior"] = {name: result.summary()[name] for name in QUANTITIES}
     return row
+
+
+def truth_log_prob(obs, settings) -> float:
+    """Log-posterior (sampling coordinates) at the true parameters: a chain that never
+    comes near it, with the data drawn from the model itself, searched the wrong basin."""
+    problem = build_problem(obs, settings)
+    space = problem.space
+    true_row = np.array([[obs.truth[name] for name in space.names]])
+    return float(problem.log_posterior(space.to_unbounded(true_row))[0, 0])
 
 
 def _coverage(rows, name, lo, hi):
@@ -158,6 +212,8 @@ def summarise(rows):
             out["quantities"][name]["posterior_rmse_same_shots"] = float(
                 np.sqrt(np.mean((m - t)[keep] ** 2))
             )
+    gap = np.array([r["log_prob"]["truth"] - r["log_prob"]["best_in_chain"] for r in good])
+    out["chain_below_truth_by_5_fraction"] = float(np.mean(gap > 5.0))
     out["converged_fraction"] = float(np.mean([r["converged"] for r in good]))
     out["median_seconds_per_shot"] = float(np.median([r["seconds"] for r in good]))
     return out
@@ -205,13 +261,30 @@ def main():
     )
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--tag", default="", help="suffix of the output folder")
+    parser.add_argument(
+        "--truth",
+        default="study",
+        choices=sorted(RECIPES),
+        help="stands from the study's ranges or from the inversion's structural prior",
+    )
+    parser.add_argument(
+        "--map-search",
+        nargs=4,
+        type=int,
+        metavar=("CANDIDATES", "STARTS", "SCREEN", "POLISH"),
+        help="MAP search settings (SamplerSettings); 512 4 400 4 is the former search",
+    )
     args = parser.parse_args()
     settings = InversionSettings(
         discrepancy=args.discrepancy, discrepancy_model=args.discrepancy_model
     )
-    settings = replace(settings, sampler=replace(settings.sampler, max_steps=args.max_steps))
+    sampler = replace(settings.sampler, max_steps=args.max_steps)
+    if args.map_search:
+        names = ("candidates", "starts", "screen_iterations", "polish")
+        sampler = replace(sampler, **dict(zip(names, args.map_search)))
+    settings = replace(settings, sampler=sampler)
     seeds = np.random.SeedSequence(args.seed).generate_state(args.n)
-    tasks = [(i, int(s), not args.inverse_crime, settings) for i, s in enumerate(seeds)]
+    tasks = [(i, int(s), not args.inverse_crime, settings, args.truth) for i, s in enumerate(seeds)]
     folder = (
         Path(__file__).parent
         / "output"
@@ -229,8 +302,13 @@ def main():
         {
             "explicit_realisations": not args.inverse_crime,
             "max_steps": args.max_steps,
+            "truth": args.truth,
             "discrepancy": args.discrepancy,
             "discrepancy_model": args.discrepancy_model,
+            "map_search": {
+                k: getattr(settings.sampler, k)
+                for k in ("candidates", "starts", "screen_iterations", "polish")
+            },
             "wall_seconds": time.perf_counter() - start,
             "workers": args.workers,
         }

@@ -43,8 +43,8 @@ class SamplerSettings:
     polish : int
         Screened starts, the best ones, run on to convergence. The best few of many
         prior draws often share one basin, and a wrong basin is one the ensemble never
-        leaves: with 512 draws and 4 starts the optimum missed the true parameters' basin
-        by 13–505 in log-posterior on 5 of the 6 worst inverse-crime recovery shots.
+        leaves: with 512 draws and 4 starts, 7 of 100 inverse-crime recovery shots ended
+        more than 5 below the true parameters' log-posterior; with these defaults, 3.
     ball : float
         Scale of the initial ball: walkers start from N(MAP, ball²·Σ) with Σ the Laplace
         covariance at the MAP.
@@ -119,7 +119,9 @@ def _batched_objective(log_prob, step=1e-5):
 
 
 def find_map(log_prob, space, rng, settings: SamplerSettings) -> MapEstimate:
-    """Maximise ``log_prob`` (of unbounded coordinates) from the best of many prior draws."""
+    """Maximise ``log_prob`` (of unbounded coordinates): the best ``starts`` of
+    ``candidates`` prior draws run ``screen_iterations`` of L-BFGS-B each, and the best
+    ``polish`` of those run on to convergence."""
     draws = space.to_unbounded(space.sample_prior(rng, settings.candidates))
     draws = draws[np.all(np.isfinite(draws), axis=1)]
     scores = log_prob(draws)
