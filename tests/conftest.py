@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 import forward as fw
+from lidarinv.inference.priors import LogUniform, TruncatedNormal, Uniform
 
 
 def random_stand(rng, n=60, half_width=25.0, shapes=fw.SHAPE_NAMES, favd=0.8):
@@ -25,3 +26,14 @@ def rng():
 @pytest.fixture
 def gedi():
     return fw.instrument_preset("gedi")
+
+
+@pytest.fixture
+def nuisance_priors():
+    """Shot-independent nuisance priors for building a default parameter space."""
+    return {
+        "ground_elevation": TruncatedNormal(0.0, 0.1, -1.0, 1.0),
+        "gain": LogUniform(1.0, 100.0),
+        "baseline": Uniform(-1.0, 1.0),
+        "noise_sigma": LogUniform(0.1, 10.0),
+    }

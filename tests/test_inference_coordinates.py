@@ -5,16 +5,6 @@ import pytest
 
 from lidarinv.inference import coordinates
 from lidarinv.inference.parameters import default_space
-from lidarinv.inference.priors import LogUniform, TruncatedNormal, Uniform
-
-
-def _nuisance():
-    return {
-        "ground_elevation": TruncatedNormal(0.0, 0.1, -1.0, 1.0),
-        "gain": LogUniform(1.0, 100.0),
-        "baseline": Uniform(-1.0, 1.0),
-        "noise_sigma": LogUniform(0.1, 10.0),
-    }
 
 
 def test_crown_base_coordinate_round_trip_with_exact_jacobian():
@@ -37,9 +27,9 @@ def test_crown_base_coordinate_round_trip_with_exact_jacobian():
 
 
 @pytest.mark.parametrize("mean_height", [1.5, 15.0, 60.0])
-def test_crown_base_coordinate_keeps_the_ratio_prior(mean_height):
+def test_crown_base_coordinate_keeps_the_ratio_prior(mean_height, nuisance_priors):
     """The ratio's prior carried to b = ln B with the Jacobian integrates to one."""
-    prior = default_space(_nuisance()).by_name["crown_length_ratio"].prior
+    prior = default_space(nuisance_priors).by_name["crown_length_ratio"].prior
     b = np.linspace(np.log(mean_height) - 40.0, np.log(mean_height) + 1.0, 400_001)
     ratio, log_jac = coordinates.ratio_from_crown_base(b, mean_height)
     with np.errstate(invalid="ignore"):
@@ -50,8 +40,8 @@ def test_crown_base_coordinate_keeps_the_ratio_prior(mean_height):
 BOTH = ("cover-pai", "crown-base")
 
 
-def test_space_samples_the_crown_base_of_the_mean_tree():
-    space = default_space(_nuisance(), ridges=BOTH)
+def test_space_samples_the_crown_base_of_the_mean_tree(nuisance_priors):
+    space = default_space(nuisance_priors, ridges=BOTH)
     assert "crown-base" in space.signature()
     r, top, sd = (space.names.index(k) for k in ("crown_length_ratio", "top_height", "height_sd"))
     x = space.sample_prior(np.random.default_rng(5), 400)
@@ -68,22 +58,22 @@ def test_space_samples_the_crown_base_of_the_mean_tree():
     assert space.log_prior(x_bad)[0] == -np.inf
 
 
-def test_crown_base_uses_a_fixed_height_and_can_be_turned_off():
-    fixed_top = default_space(_nuisance(), ridges=BOTH)
+def test_crown_base_uses_a_fixed_height_and_can_be_turned_off(nuisance_priors):
+    fixed_top = default_space(nuisance_priors, ridges=BOTH)
     fixed_top = fixed_top.with_changes({"top_height": {"fixed": 25.0}})
     r, sd = fixed_top.names.index("crown_length_ratio"), fixed_top.names.index("height_sd")
     x = fixed_top.sample_prior(np.random.default_rng(6), 20)
     x[:, sd] = np.minimum(x[:, sd], 10.0)
     u = fixed_top.to_unbounded(x)
     np.testing.assert_allclose(np.exp(u[:, r]), (1.0 - x[:, r]) * (25.0 - 2.0 * x[:, sd]))
-    per_parameter = default_space(_nuisance())  # crown-base is opt-in
+    per_parameter = default_space(nuisance_priors)  # crown-base is opt-in
     assert "crown-base" not in per_parameter.signature()
     r = per_parameter.names.index("crown_length_ratio")
     x = per_parameter.sample_prior(np.random.default_rng(7), 5)
     prior = per_parameter.by_name["crown_length_ratio"].prior
     np.testing.assert_allclose(per_parameter.to_unbounded(x)[:, r], prior.to_unbounded(x[:, r]))
-    fixed_ratio = default_space(_nuisance(), ridges=BOTH)
+    fixed_ratio = default_space(nuisance_priors, ridges=BOTH)
     fixed_ratio = fixed_ratio.with_changes({"crown_length_ratio": {"fixed": 0.4}})
     assert "crown-base" not in fixed_ratio.signature()
     with pytest.raises(ValueError, match="unknown sampling coordinates"):
-        default_space(_nuisance(), ridges=("crown-tip",))
+        default_space(nuisance_priors, ridges=("crown-tip",))

@@ -88,22 +88,13 @@ def test_bad_prior_specifications_are_named():
         make_prior({"kind": "cauchy", "lower": 0, "upper": 1})
 
 
-def _nuisance():
-    return {
-        "ground_elevation": TruncatedNormal(0.0, 0.1, -1.0, 1.0),
-        "gain": LogUniform(1.0, 100.0),
-        "baseline": Uniform(-1.0, 1.0),
-        "noise_sigma": LogUniform(0.1, 10.0),
-    }
-
-
-def test_priors_file_overrides_fix_and_free(tmp_path):
+def test_priors_file_overrides_fix_and_free(tmp_path, nuisance_priors):
     path = tmp_path / "priors.toml"
     path.write_text(
         '[top_height]\nkind = "uniform"\nlower = 5.0\nupper = 40.0\n\n'
         "[understory_lai]\nfixed = 0.0\n\n[crown_radius_slope]\nfree = true\n"
     )
-    space = default_space(_nuisance(), read_priors_file(path))
+    space = default_space(nuisance_priors, read_priors_file(path))
     assert space.by_name["top_height"].prior == Uniform(5.0, 40.0)
     assert "understory_lai" not in space.names
     assert "crown_radius_slope" in space.names
@@ -147,13 +138,13 @@ def test_joint_cover_pai_coordinates_round_trip_with_exact_jacobian():
     assert np.all(np.isnan(coordinates.from_cover_pai(np.array([0.0, 1.0, 0.5]), 1.0)[0][:2]))
 
 
-def test_joint_coordinates_keep_the_cover_pai_prior():
+def test_joint_coordinates_keep_the_cover_pai_prior(nuisance_priors):
     """The prior on cover and PAI, carried to (s, t) with the Jacobian, still integrates
     to one: only the sampling coordinates change, not the posterior."""
     s, t = np.linspace(-14.0, 5.0, 1500), np.linspace(-9.0, 9.0, 1500)
     grid_s, grid_t = np.meshgrid(s, t, indexing="ij")
     cover, pai, log_jac = coordinates.to_cover_pai(grid_s, grid_t)
-    space = default_space(_nuisance())
+    space = default_space(nuisance_priors)
     density = np.exp(
         space.by_name["cover"].prior.log_pdf(cover) + space.by_name["pai"].prior.log_pdf(pai)
         + log_jac
@@ -162,8 +153,8 @@ def test_joint_coordinates_keep_the_cover_pai_prior():
     assert total == pytest.approx(1.0, abs=1e-3)
 
 
-def test_parameter_space_samples_cover_and_pai_jointly_only_when_both_are_free():
-    space = default_space(_nuisance())
+def test_parameter_space_samples_cover_and_pai_jointly_only_when_both_are_free(nuisance_priors):
+    space = default_space(nuisance_priors)
     rng = np.random.default_rng(8)
     x = space.sample_prior(rng, 200)
     top, sd = (x[:, space.names.index(k)] for k in ("top_height", "height_sd"))
@@ -175,7 +166,7 @@ def test_parameter_space_samples_cover_and_pai_jointly_only_when_both_are_free()
     np.testing.assert_allclose(
         u[:, [c, a]], np.column_stack(coordinates.from_cover_pai(x[:, c], x[:, a]))
     )
-    per_parameter = default_space(_nuisance()).with_changes({"cover": {"fixed": 0.5}})
+    per_parameter = default_space(nuisance_priors).with_changes({"cover": {"fixed": 0.5}})
     x = per_parameter.sample_prior(rng, 5)
     u = per_parameter.to_unbounded(x)
     i = per_parameter.names.index("pai")
