@@ -54,26 +54,36 @@ QUANTITIES = (
 )
 
 
+def _recipe(rng, cone, **structure) -> ShotRecipe:
+    """A truncated-normal stand of the given structure, with random reflectances and
+    GEDI-like observation settings."""
+    params = StandParams(
+        **structure,
+        height_family="truncnorm",
+        height_truncation=TOP_SDS,
+        shape_mix={"cone": cone, "ellipsoid": 1.0 - cone},
+        ground_reflectance=0.3,
+        canopy_reflectance=0.3 * float(np.clip(rng.normal(1.5, 0.3), 0.8, 2.5)),
+    )
+    return ShotRecipe(params, gain=rng.uniform(4000.0, 12000.0), baseline=50.0, noise_sigma=2.0)
+
+
 def draw_recipe(rng) -> ShotRecipe:
     """Random stand and GEDI-like observation settings."""
     sd = rng.uniform(1.0, 4.0)
     mean = rng.uniform(8.0, 25.0)
     cone = rng.uniform(0.0, 1.0)
-    params = StandParams(
+    return _recipe(
+        rng,
+        cone,
         density=rng.uniform(200.0, 1500.0),
         height_mean=mean,
         height_sd=sd,
-        height_family="truncnorm",
-        height_truncation=TOP_SDS,
-        shape_mix={"cone": cone, "ellipsoid": 1.0 - cone},
         crown_length_ratio=rng.uniform(0.3, 0.7),
         favd=rng.uniform(0.3, 1.2),
         understory_height=rng.uniform(0.5, 2.0),
         understory_lai=rng.uniform(0.0, 0.8),
-        ground_reflectance=0.3,
-        canopy_reflectance=0.3 * float(np.clip(rng.normal(1.5, 0.3), 0.8, 2.5)),
     )
-    return ShotRecipe(params, gain=rng.uniform(4000.0, 12000.0), baseline=50.0, noise_sigma=2.0)
 
 
 #: The structural priors a ``--truth prior`` stand is drawn from (crown radius slope fixed).
@@ -93,23 +103,18 @@ def draw_recipe_from_prior(rng) -> ShotRecipe:
             break
     vectors, _ = mapping.model_vectors(v)
     column = dict(zip(mapping.model_free, vectors[0]))
-    cone = float(v["cone_fraction"][0])
-    params = StandParams(
-        density=column["density"],
-        height_mean=column["height_mean"],
-        height_sd=column["height_sd"],
-        height_family="truncnorm",
-        height_truncation=TOP_SDS,
-        shape_mix={"cone": cone, "ellipsoid": 1.0 - cone},
-        crown_length_ratio=column["crown_length_ratio"],
+    return _recipe(
+        rng,
+        float(v["cone_fraction"][0]),
+        **{k: column[k] for k in ("density", "height_mean", "height_sd", "crown_length_ratio")},
         favd=column["favd"],
         understory_height=float(v["understory_height"][0]),
         understory_lai=float(v["understory_lai"][0]),
-        ground_reflectance=0.3,
-        canopy_reflectance=0.3 * float(np.clip(rng.normal(1.5, 0.3), 0.8, 2.5)),
     )
-    return ShotRecipe(params, gain=rng.uniform(4000.0, 12000.0), baseline=50.0, noise_sigma=2.0)
 
+
+#: SamplerSettings fields that ``--map-search`` sets, in order.
+MAP_SEARCH_FIELDS = ("candidates", "starts", "screen_iterations", "polish")
 
 #: Stand draws by name (``--truth``).
 RECIPES = {"study": draw_recipe, "prior": draw_recipe_from_prior}
@@ -280,8 +285,7 @@ def main():
     )
     sampler = replace(settings.sampler, max_steps=args.max_steps)
     if args.map_search:
-        names = ("candidates", "starts", "screen_iterations", "polish")
-        sampler = replace(sampler, **dict(zip(names, args.map_search)))
+        sampler = replace(sampler, **dict(zip(MAP_SEARCH_FIELDS, args.map_search)))
     settings = replace(settings, sampler=sampler)
     seeds = np.random.SeedSequence(args.seed).generate_state(args.n)
     tasks = [(i, int(s), not args.inverse_crime, settings, args.truth) for i, s in enumerate(seeds)]
@@ -305,10 +309,7 @@ def main():
             "truth": args.truth,
             "discrepancy": args.discrepancy,
             "discrepancy_model": args.discrepancy_model,
-            "map_search": {
-                k: getattr(settings.sampler, k)
-                for k in ("candidates", "starts", "screen_iterations", "polish")
-            },
+            "map_search": {k: getattr(settings.sampler, k) for k in MAP_SEARCH_FIELDS},
             "wall_seconds": time.perf_counter() - start,
             "workers": args.workers,
         }

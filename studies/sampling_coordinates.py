@@ -32,6 +32,7 @@ import matplotlib  # noqa: E402
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from inversion_speed import CONFIGURATIONS  # noqa: E402  (studies/ is the script's folder)
 
 from lidarinv.inference import InversionSettings, build_problem  # noqa: E402
 from lidarinv.inference.posterior import BLOB_NAMES  # noqa: E402
@@ -49,7 +50,7 @@ COORDINATES = {
 DERIVED = ("mean_height", "crown_volume", "lai")
 
 #: The speed study's 10-free configuration.
-TEN_FREE = {"sample_noise": False, "priors": {"cone_fraction": {"fixed": 0.5}}}
+TEN_FREE = CONFIGURATIONS["10-free"]
 
 
 def physical_tau(problem, run, burn):
