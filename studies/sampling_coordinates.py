@@ -86,13 +86,14 @@ def run_shot(obs, settings, seed):
 
 
 def plot(summary, path):
-    labels = list(COORDINATES)
+    labels = [label for label in COORDINATES if label in summary["shots"][0]]
+    width = 0.8 / len(labels)
     names = list(summary["shots"][0][labels[0]]["tau"])
     fig, ax = plt.subplots(figsize=(9, 4))
     for k, label in enumerate(labels):
         tau = np.array([[shot[label]["tau"][n] for n in names] for shot in summary["shots"]])
-        x = np.arange(len(names)) + (k - 1) * 0.25
-        ax.bar(x, np.median(tau, axis=0), width=0.25, label=label)
+        x = np.arange(len(names)) + (k - (len(labels) - 1) / 2) * width
+        ax.bar(x, np.median(tau, axis=0), width=width, label=label)
         ax.plot(np.repeat(x[None], tau.shape[0], 0), tau, "k.", ms=3)
     ax.set_xticks(np.arange(len(names)), names, rotation=45, ha="right")
     ax.set_ylabel("integrated autocorrelation time τ (steps)")
@@ -108,6 +109,7 @@ def main():
     parser.add_argument("--n", type=int, default=6)
     parser.add_argument("--steps", type=int, default=8000)
     parser.add_argument("--seed", type=int, default=11)
+    parser.add_argument("--coordinates", nargs="+", default=list(COORDINATES), choices=COORDINATES)
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     base = replace(InversionSettings(), **TEN_FREE)
@@ -123,7 +125,8 @@ def main():
         except ValueError as error:  # e.g. a return running out of the window
             skipped.append(str(error))
             continue
-        for label, ridges in COORDINATES.items():
+        for label in args.coordinates:
+            ridges = COORDINATES[label]
             row[label] = run_shot(obs, replace(base, ridges=ridges), seed)
             worst = max(row[label]["tau"], key=row[label]["tau"].get)
             print(obs.shot_id, label, f"max τ {row[label]['max_tau']:.0f} ({worst})", flush=True)
@@ -133,7 +136,7 @@ def main():
             key: float(np.median([shot[label][key] for shot in shots]))
             for key in ("max_tau", "seconds_per_step", "seconds_to_50_tau", "acceptance")
         }
-        for label in COORDINATES
+        for label in args.coordinates
     }
     summary = {
         "steps": args.steps,

@@ -7,7 +7,14 @@ from scipy import stats
 
 from forward.pulse import MeasuredPulse
 from lidarinv.inference import InversionSettings, build_problem
-from lidarinv.inference.likelihood import WindowData, log_likelihood, model_moments
+from lidarinv.inference.compiled import relative_heights
+from lidarinv.inference.likelihood import (
+    WindowData,
+    log_likelihood,
+    model_moments,
+    row_log_likelihood,
+)
+from lidarinv.inference.posterior import rh_from_waveform
 from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
 
 
@@ -55,3 +62,41 @@ def test_ground_prior_centres_on_the_detected_peak_and_window_holds_empty_bins()
     top = problem.space.by_name["top_height"].prior.upper
     assert problem.window.axis[-1] > problem.analysis.signal_start + 5.0
     assert top < problem.window.axis[-1] - prior.mean
+
+
+def _window(rng, bins=40):
+    y = rng.normal(5.0, 2.0, bins)
+    censored = np.zeros(bins, bool)
+    censored[:5] = True  # floored
+    saturated = np.zeros(bins, bool)
+    saturated[-2:] = True
+    y[censored], y[saturated] = 1.0, 30.0
+    return WindowData(np.arange(bins) * 0.15, y, censored, saturated, floor=1.0, saturation=30.0)
+
+
+def test_fast_likelihood_matches_the_numpy_reference_with_either_discrepancy():
+    rng = np.random.default_rng(7)
+    data = _window(rng)
+    signal = rng.gamma(2.0, 1.0, (9, data.axis.size)) * (rng.random((9, data.axis.size)) > 0.3)
+    gain, baseline, sigma = rng.uniform(1, 4, 9), rng.uniform(-1, 1, 9), rng.uniform(0.5, 2, 9)
+    fixed = rng.uniform(0.0, 3.0, data.axis.size)
+    for scale, extra_fixed in ((0.0, fixed), (0.25, None)):
+        extra = fixed if extra_fixed is not None else (scale * gain[:, None] * signal) ** 2
+        mean, variance = model_moments(signal, gain, baseline, sigma, 0.4, extra)
+        fast = row_log_likelihood(data, signal, gain, baseline, sigma, 0.4, scale, extra_fixed)
+        np.testing.assert_allclose(fast, log_likelihood(data, mean, variance), rtol=1e-12)
+
+
+def test_fast_relative_heights_match_the_numpy_reference():
+    rng = np.random.default_rng(8)
+    axis = 100.0 + 0.15 * np.arange(60)
+    signal = rng.gamma(1.5, 1.0, (12, axis.size)) * (rng.random((12, axis.size)) > 0.5)
+    signal[0] = 0.0  # no energy: NaN
+    signal[1, :] = -1.0  # only negative samples count as none
+    signal[2, :] = 0.0
+    signal[2, 30] = 4.0  # one bin holds it all
+    ground = rng.uniform(100.0, 102.0, 12)
+    fast = relative_heights(signal, axis, ground, (0.25, 0.5, 0.98))
+    reference = rh_from_waveform(signal, axis, ground, (0.25, 0.5, 0.98))
+    np.testing.assert_allclose(fast, reference, atol=1e-10)
+    assert np.all(np.isnan(fast[:2]))

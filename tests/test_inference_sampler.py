@@ -88,6 +88,14 @@ def test_short_run_is_flagged_not_converged():
     assert any("not converged" in flag for flag in run.flags)
 
 
+def test_unknown_move_is_refused_by_name():
+    rng = np.random.default_rng(5)
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
+    toy = LinearGaussianToy(space, rng)
+    with pytest.raises(ValueError, match=r"unknown move.*'hmc'"):
+        run_sampler(toy, space, rng, SamplerSettings(moves=(("de", 0.5), ("hmc", 0.5))))
+
+
 def test_resume_from_hdf5_backend(tmp_path):
     import emcee
 

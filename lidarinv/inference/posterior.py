@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .discrepancy import model_variance
-from .likelihood import WindowData, log_likelihood, model_moments
+from . import compiled
+from .likelihood import WindowData, model_moments, row_log_likelihood
 from .parameters import ParameterSpace
 from .stand_mapping import DERIVED, StandMapping
 
@@ -127,22 +127,26 @@ class LogPosterior:
                 plausible = (favd >= self.favd_range[0]) & (favd <= self.favd_range[1])
                 log_prior[np.flatnonzero(ok)[~plausible]] = -np.inf
                 result = self.model.evaluate(vectors)
-                m, var = model_moments(
+                like = row_log_likelihood(
+                    self.data,
                     result.samples,
                     v["gain"],
                     v["baseline"],
                     v["noise_sigma"],
                     self.shot_factor,
-                    model_variance(self.discrepancy, v["gain"], result.samples)
-                    if self.fixed_discrepancy is None
-                    else self.fixed_discrepancy,
+                    self.discrepancy if self.fixed_discrepancy is None else 0.0,
+                    self.fixed_discrepancy,
                 )
-                like = np.where(result.valid, log_likelihood(self.data, m, var), -np.inf)
-                log_like[ok] = like
-                rh = rh_from_waveform(result.samples, self.data.axis, v["ground_elevation"])
+                log_like[ok] = np.where(result.valid, like, -np.inf)
+                rh = compiled.relative_heights(
+                    result.samples, self.data.axis, v["ground_elevation"]
+                )
                 blobs[ok] = np.column_stack([rh, *(derived[name] for name in DERIVED)])
                 if keep_signal:
-                    signal[ok], mean[ok] = result.samples, m
+                    signal[ok] = result.samples
+                    mean[ok] = model_moments(
+                        result.samples, v["gain"], v["baseline"], v["noise_sigma"]
+                    )[0]
             log_post = log_prior + log_like
         log_post = np.where(np.isfinite(log_post), log_post, -np.inf)
         return Evaluation(log_prior, log_like, log_post, blobs, signal, mean)

@@ -49,7 +49,11 @@ class SamplerSettings:
         Scale of the initial ball: walkers start from N(MAP, ball²·Σ) with Σ the Laplace
         covariance at the MAP.
     moves : tuple of (str, float)
-        Move mixture: names from :data:`MOVES` and their weights.
+        Move mixture: names from :data:`MOVES` and their weights. Short DE jumps and
+        snooker moves cross the curved ridges of these posteriors faster than the
+        standard DE jump: on six GEDI-like shots (10 free, 8000 steps) the median largest
+        τ fell from 136 to 104 steps and the worst from 383 to 219, against DE/snooker/
+        stretch at 0.7/0.1/0.2 (README, "Sampling").
     """
 
     n_walkers: int = 32
@@ -64,15 +68,21 @@ class SamplerSettings:
     screen_iterations: int = 30
     polish: int = 3
     ball: float = 1.0
-    moves: tuple = (("de", 0.7), ("de-snooker", 0.1), ("stretch", 0.2))
+    moves: tuple = (("de", 0.5), ("de-short", 0.3), ("de-snooker", 0.2))
 
 
-#: Move constructors by name.
+#: Jump of the ``de-short`` move as a fraction of the standard DE jump 2.38/√(2·ndim).
+SHORT_DE_FRACTION = 0.55
+
+#: Move constructors by name, each called with the number of sampled dimensions.
 MOVES = {
-    "de": emcee.moves.DEMove,
-    "de-snooker": emcee.moves.DESnookerMove,
-    "stretch": emcee.moves.StretchMove,
-    "walk": emcee.moves.WalkMove,
+    "de": lambda ndim: emcee.moves.DEMove(),
+    "de-short": lambda ndim: emcee.moves.DEMove(
+        gamma0=SHORT_DE_FRACTION * 2.38 / np.sqrt(2.0 * ndim)
+    ),
+    "de-snooker": lambda ndim: emcee.moves.DESnookerMove(),
+    "stretch": lambda ndim: emcee.moves.StretchMove(),
+    "walk": lambda ndim: emcee.moves.WalkMove(),
 }
 
 
@@ -248,7 +258,10 @@ def run_sampler(
     n_walkers = max(s.n_walkers, 2 * ndim + 2)
     if n_walkers % 2:
         n_walkers += 1
-    moves = [(MOVES[name](), weight) for name, weight in s.moves]
+    unknown = sorted({name for name, _ in s.moves} - set(MOVES))
+    if unknown:
+        raise ValueError(f"unknown move(s) {unknown}; known: {sorted(MOVES)}")
+    moves = [(MOVES[name](ndim), weight) for name, weight in s.moves]
     resume = backend is not None and backend.initialized and backend.iteration > 0
     if resume and backend.shape != (n_walkers, ndim):
         raise ValueError(
