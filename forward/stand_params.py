@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from scipy import stats
-from scipy.special import gamma, ndtr, ndtri
+from scipy.special import gamma, gammaincc, ndtr, ndtri
 
 from .crowns import SHAPE_NAMES
 
@@ -73,6 +73,10 @@ def _weibull_fast(which, x, args, loc, scale):
         return np.where(x >= loc, np.where(y > 0, dens, at_zero), 0.0)
     if which == "sf":
         return np.exp(-((np.maximum(x - loc, 0.0) / scale) ** k))
+    if which == "mean_above":  # λ·Γ(1 + 1/k)·Q(1 + 1/k, y^k) + loc·S
+        y_k = (np.maximum(x - loc, 0.0) / scale) ** k
+        shape = 1.0 + 1.0 / k
+        return scale * gamma(shape) * gammaincc(shape, y_k) + loc * np.exp(-y_k)
     tail = -np.log1p(-x) if which == "ppf" else -np.log(x)
     return loc + scale * tail ** (1.0 / k)
 
@@ -86,6 +90,11 @@ def _lognormal_fast(which, x, args, loc, scale):
     if which == "sf":
         with np.errstate(divide="ignore"):
             return ndtr(-np.log(np.maximum(x - loc, 0.0) / scale) / sigma)
+    if which == "mean_above":  # scale·e^{σ²/2}·Φ(σ − ln(y)/σ) + loc·S
+        with np.errstate(divide="ignore"):
+            log_y = np.log(np.maximum(x - loc, 0.0) / scale)
+        above = scale * np.exp(0.5 * sigma**2) * ndtr(sigma - log_y / sigma)
+        return above + loc * ndtr(-log_y / sigma)
     sign = 1.0 if which == "ppf" else -1.0
     return loc + scale * np.exp(sign * sigma * ndtri(x))
 
@@ -100,6 +109,11 @@ def _truncnorm_fast(which, x, args, loc, scale):
     if which == "sf":
         y = np.clip((x - loc) / scale, a, b)
         return np.clip((high - ndtr(y)) / (high - low), 0.0, 1.0)
+    if which == "mean_above":  # [loc·(Φ(b) − Φ(y)) + scale·(φ(y) − φ(b))] / (Φ(b) − Φ(a))
+        y = np.clip((x - loc) / scale, a, b)
+        mass = ndtr(-y) - ndtr(-b)  # upper-tail form: no cancellation near b
+        density = (np.exp(-0.5 * y * y) - np.exp(-0.5 * b * b)) / np.sqrt(2 * np.pi)
+        return (loc * mass + scale * density) / (high - low)
     p = low + x * (high - low) if which == "ppf" else high - x * (high - low)
     return loc + scale * ndtri(p)
 
@@ -126,8 +140,8 @@ class HeightFamily:
     meaning : str
         What ``mean`` and ``sd`` mean for this family.
     fast : callable
-        ``fast(which, x, args, loc, scale)`` for ``which`` in pdf/ppf/isf/sf: the same
-        functions in closed form through scipy.special (array-aware, no scipy.stats
+        ``fast(which, x, args, loc, scale)`` for ``which`` in pdf/ppf/isf/sf/mean_above:
+        the same functions in closed form through scipy.special (array-aware, no scipy.stats
         overhead); :meth:`pdf`, :meth:`ppf`, :meth:`isf` and :meth:`sf` use it.
     """
 
@@ -158,6 +172,11 @@ class HeightFamily:
     def sf(self, x, mean, sd, truncation=2.0):
         """Fraction of the trees taller than ``x`` (m)."""
         return self.fast("sf", x, *self.arguments(mean, sd, truncation))
+
+    def mean_above(self, x, mean, sd, truncation=2.0):
+        """∫ₓ^∞ h·f(h) dh (m): the partial mean of the trees taller than ``x`` (m), in
+        closed form (divided by :meth:`sf`, their mean height)."""
+        return self.fast("mean_above", x, *self.arguments(mean, sd, truncation))
 
 
 #: Height-distribution families by name.

@@ -37,6 +37,10 @@ def test_closed_forms_agree_with_scipy_stats(family, mean, sd):
     np.testing.assert_allclose(fam.ppf(q, mean, sd, 2.5), frozen.ppf(q), rtol=1e-7)
     np.testing.assert_allclose(fam.isf(q, mean, sd, 2.5), frozen.isf(q), rtol=1e-7)
     np.testing.assert_allclose(fam.sf(x, mean, sd, 2.5), frozen.sf(x), rtol=1e-9, atol=1e-15)
+    # partial mean ∫ₓ h f(h) dh against scipy's numerical expectation
+    cuts = np.array([0.0, *fam.isf(np.array([0.5, 0.01]), mean, sd, 2.5)])
+    reference = [frozen.expect(lambda h: h, lb=max(c, frozen.ppf(0.0))) for c in cuts]
+    np.testing.assert_allclose(fam.mean_above(cuts, mean, sd, 2.5), reference, rtol=1e-7)
 
 
 def test_shape_mix_accepts_names_and_mappings():

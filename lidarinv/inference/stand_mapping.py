@@ -198,12 +198,13 @@ class StandMapping:
         return out
 
     def _dominant_height(self, mean, sd, density):
-        """Mean height of the DOMINANT_PER_HA tallest stems per hectare (all if fewer)."""
+        """Mean height of the DOMINANT_PER_HA tallest stems per hectare (all if fewer):
+        the family's closed-form partial mean above the cut over the share above it."""
         tail = np.clip(DOMINANT_PER_HA / density, 1e-9, 1.0)
         cut = self.family.isf(tail, mean, sd, self.truncation)
-        low = np.where(tail < 1.0, cut, self.family.ppf(1e-9, mean, sd, self.truncation))
-        h, weight = self._quadrature(mean, sd, lo=low)
-        return np.sum(weight * h, axis=1) / np.maximum(weight.sum(axis=1), 1e-300)
+        above = self.family.sf(cut, mean, sd, self.truncation)
+        partial = self.family.mean_above(cut, mean, sd, self.truncation)
+        return partial / np.maximum(above, 1e-300)
 
     def crown_volume_profile(self, v, z) -> np.ndarray:
         """Crown volume per unit ground area and height (m³/m²/m) at heights z (m), (n, nz)."""
