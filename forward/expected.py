@@ -229,21 +229,19 @@ class ExpectedWaveformModel:
         self._unit_grid = np.arange(s.height_nodes, dtype=float)
         self._family = HEIGHT_DISTRIBUTIONS[template.height_family]
         self._kappa = instrument.extinction_per_favd
+        self._ground_support = instrument.pulse.support(1e-12)
         if s.backend not in ("auto", "numba", "numpy"):
             raise ValueError(f"backend must be 'auto', 'numba' or 'numpy', got {s.backend!r}")
         if s.backend == "numba" and not expected_numba.AVAILABLE:
             raise ImportError("ModelSettings(backend='numba') needs numba installed")
         compiled = s.backend != "numpy" and expected_numba.AVAILABLE and s.height_nodes >= 4
         self.backend = "numba" if compiled else "numpy"
-        if compiled:
-            self._add_depth = expected_numba.add_tree_depth
-        else:
-            self._add_depth = partial(
-                expected_depth.add_tree_depth,
-                tails=self._tails,
-                a_groups=expected_depth.groups(self._s_lo),
-                b_groups=expected_depth.groups(self._s_hi),
-            )
+        self._add_depth = partial(
+            expected_depth.add_tree_depth,
+            tails=self._tails,
+            a_groups=expected_depth.groups(self._s_lo),
+            b_groups=expected_depth.groups(self._s_hi),
+        )
         # the depth grid of the fast path: whole fine layers, about depth_nodes nodes up
         # to the template's tallest tree
         self._per_cell, self._operators = None, {}
@@ -318,7 +316,7 @@ class ExpectedWaveformModel:
             canopy[rows], gap0[rows] = self._canopy(full[rows])
         g = full[:, _I["ground_elevation"]]
         dz = self.instrument.bin_height
-        low, high = self.instrument.pulse.support(1e-12)
+        low, high = self._ground_support
         first = max(int(np.searchsorted(self.heights, g.min() + low)), 0)
         last = int(np.searchsorted(self.heights, g.max() + high, side="right"))
         ground = np.zeros_like(canopy)
@@ -342,17 +340,16 @@ class ExpectedWaveformModel:
         top = self._top(cohorts)
         if self._per_cell is None:
             return self._canopy_edges(v, cohorts, top)
-        canopy, gap0 = self._canopy_grid(v, cohorts, top)
         # the grid's cubic undershoots slightly below zero (~1e-8 of the canopy energy in
         # typical stands); rows where it undershoots by more, a canopy much thinner than a
         # grid cell, take the per-edge path, whose depth is monotone
-        lowest = canopy.min(axis=1)
-        redo = lowest < -GRID_UNDERSHOOT * np.maximum(1.0 - gap0, np.finfo(float).tiny)
+        canopy, gap0, redo = self._canopy_grid(v, cohorts, top)
         if redo.any():
             again = v[redo]
             cohorts = self._cohorts(again)
             canopy[redo], gap0[redo] = self._canopy_edges(again, cohorts, self._top(cohorts))
-        return _clip_keeping_energy(canopy, lowest < 0), gap0
+            canopy = _clip_keeping_energy(canopy, redo)
+        return canopy, gap0
 
     def _add_understory(self, v, z0, lost, interp, layers_to_samples, local):
         """The grid path's samples (n, bins) and E[P(0)] with a uniform understory.
@@ -367,10 +364,11 @@ class ExpectedWaveformModel:
         edges = min(int(np.max(np.ceil((hu - z0) / layer))) + 2, interp.shape[1])
         z = np.maximum(z0[:, None] + layer * np.arange(edges), 0.0)
         trees = 1.0 + lost @ interp[:, :edges]
-        both = trees * np.exp(-self._understory_depth(v, z))
-        change = np.diff(both, axis=1) - np.diff(trees, axis=1)
+        intercepted = -np.expm1(-self._understory_depth(v, z))  # 1 − P_u
+        # Δ(P_trees·P_u) − ΔP_trees = −Δ(P_trees·(1 − P_u)); z starts at 0 in every row
+        change = -np.diff(trees * intercepted, axis=1)
         local = local + change @ layers_to_samples[: edges - 1]
-        return local, (1.0 + lost[:, 0]) * np.exp(-self._understory_depth(v, z[:, :1]))[:, 0]
+        return local, (1.0 + lost[:, 0]) * (1.0 - intercepted[:, 0])
 
     def _canopy_edges(self, v, cohorts, top):
         """E[P] at every fine-layer edge, then the layer kernel as a matrix product."""
@@ -391,7 +389,11 @@ class ExpectedWaveformModel:
     def _canopy_grid(self, v, cohorts, top):
         """E[P] on a grid of whole fine layers anchored on a bin edge at or below each
         row's ground, so that interpolation, layer energies and the pulse are one
-        constant matrix; each row is then shifted by whole bins."""
+        constant matrix; each row is then shifted by whole bins.
+
+        Returns the samples (n, bins), E[P(0)] (n,) and the rows whose samples undershoot
+        zero by more than :data:`GRID_UNDERSHOOT` of their canopy energy (n,); the others
+        are clipped at zero, keeping their energy."""
         n, dz = v.shape[0], self.instrument.bin_height
         g = v[:, _I["ground_elevation"]]
         step = self._per_cell * self.layer_height
@@ -406,8 +408,18 @@ class ExpectedWaveformModel:
         nodes = max(2, int(min(span, reach)) + 1)
         z = z0[:, None] + step * np.arange(nodes)
         np.maximum(z, 0.0, out=z)
+        depth = self._tree_depth(v, z, cohorts)
+        if self.backend == "numba":
+            lai, top_u = v[:, _I["understory_lai"]], v[:, _I["understory_height"]]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                scale_u = np.where(understory, self._kappa * lai / top_u, 0.0)
+            operator = self._grid_operator(nodes)
+            return expected_numba.assemble_grid(
+                depth, operator, shift, scale_u, top_u, z0, self.layer_height, self.heights.size,
+                GRID_UNDERSHOOT,
+            )  # fmt: skip
         # E[P] − 1 (zero above the trees): a bare row gives exactly zero
-        lost = np.expm1(-self._tree_depth(v, z, cohorts))
+        lost = np.expm1(-depth)
         matrix, first, interp, layers_to_samples = self._grid_operator(nodes)
         local = lost @ matrix
         gap0 = 1.0 + lost[:, 0]
@@ -421,7 +433,10 @@ class ExpectedWaveformModel:
         cols += (1 + width * np.arange(n))[:, None]
         out = np.zeros((n, width))
         out.ravel()[cols.ravel()] = local.ravel()
-        return out[:, 1:-1], gap0
+        canopy = out[:, 1:-1]
+        lowest = canopy.min(axis=1)
+        redo = lowest < -GRID_UNDERSHOOT * np.maximum(1.0 - gap0, np.finfo(float).tiny)
+        return _clip_keeping_energy(canopy, (lowest < 0) & ~redo), gap0, redo
 
     def _grid_operator(self, nodes):
         """:func:`forward.expected_tables.grid_operator` for ``nodes``, cached."""
@@ -514,25 +529,35 @@ class ExpectedWaveformModel:
         summed before the read.
         """
         nh = self.settings.height_nodes
-        c = v[:, _I["crown_length_ratio"], None]
-        a = np.maximum(1.0 - c + c * self._s_lo, 1e-12)  # (n, J)
-        b = 1.0 - c + c * self._s_hi
-        ku = (self._kappa * v[:, _I["favd"]])[:, None] * self._node_favd
+        c = v[:, _I["crown_length_ratio"]]
+        extinction = self._kappa * v[:, _I["favd"]]
+        r0, r1 = v[:, _I["crown_radius_intercept"]], v[:, _I["crown_radius_slope"]]
+        compiled = self.backend == "numba"
+        if not compiled:
+            a = np.maximum(1.0 - c[:, None] + c[:, None] * self._s_lo, 1e-12)  # (n, J)
+            b = 1.0 - c[:, None] + c[:, None] * self._s_hi
+            ku = extinction[:, None] * self._node_favd
         mix = v[:, self._mix_index]  # cohort 1's fractions of the model's shapes
         depth = np.zeros_like(z)
         for cohort, (weight, args, lo, hi) in enumerate(cohorts):
             step = (hi - lo) / (nh - 1)
             h = lo[:, None] + step[:, None] * self._unit_grid
             pdf = self._family.fast("pdf", h, *args)
-            norm = step * tail_integrals(pdf, self._tails)[:, 0]
-            radius = (
-                v[:, _I["crown_radius_intercept"], None] + v[:, _I["crown_radius_slope"], None] * h
-            )
-            scale = (np.pi / 1e4) * v[:, _I["density"]] * weight / np.where(norm > 0, norm, 1.0)
-            g = scale[:, None] * radius**2 * pdf
             fractions = mix if cohort == 0 else self._mixes[1, self._shapes][None, :]
-            w = fractions[:, self._node_shape] * self._node_weight  # (n, J)
+            w = fractions[:, self._node_shape] * self._node_weight  # (n, J), or (1, J)
             if not np.any(w):
                 continue
+            stems = v[:, _I["density"]] * weight
+            if compiled:
+                w = np.broadcast_to(w, (v.shape[0], w.shape[1]))
+                expected_numba.add_cohort_depth(
+                    pdf, lo, step, stems, r0, r1, c, self._s_lo, self._s_hi, extinction,
+                    self._node_favd, w, z, depth,
+                )  # fmt: skip
+                continue
+            norm = step * tail_integrals(pdf, self._tails)[:, 0]
+            radius = r0[:, None] + r1[:, None] * h
+            scale = (np.pi / 1e4) * stems / np.where(norm > 0, norm, 1.0)
+            g = scale[:, None] * radius**2 * pdf
             self._add_depth(g, lo, step, a, b, ku, w, z, depth)
         return depth

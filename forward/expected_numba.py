@@ -1,12 +1,16 @@
-"""Compiled tree optical depth of :mod:`forward.expected` (optional, needs numba).
+"""Compiled kernels of :mod:`forward.expected` (optional, needs numba).
 
-The same quantity as the numpy path of
-:meth:`forward.expected.ExpectedWaveformModel._tree_depth`, computed row by row: the
-discounted tails S(h_i; r) by their backward recurrence S_i = e^{−rδ}·S_{i+1} + C_i (C_i
-the fourth-order cell rule of :func:`forward.expected_tables.tail_matrix` applied to
-g(h)·e^{−r(h − h_i)}), the tables A_j, B_j with their exact slopes, and cubic Hermite
-reads at z/b_j and z/a_j, with the exact continuation below the grid. It agrees with the
-numpy path to rounding. :data:`AVAILABLE` is False when numba cannot be imported.
+The tree optical depth, the same quantity as the numpy path of
+:meth:`forward.expected.ExpectedWaveformModel._tree_depth`, computed row by row: each
+cohort's height density scaled to crown area, the discounted tails S(h_i; r) by their
+backward recurrence S_i = e^{−rδ}·S_{i+1} + C_i (C_i the fourth-order cell rule of
+:func:`forward.expected_tables.tail_matrix` applied to g(h)·e^{−r(h − h_i)}), the tables
+A_j, B_j with their exact slopes, and cubic Hermite reads at z/b_j and z/a_j, with the
+exact continuation below the grid. Then the grid path's assembly of the samples
+(:meth:`~forward.expected.ExpectedWaveformModel._canopy_grid`): grid operator, uniform
+understory, whole-bin shift. Both agree with the numpy path to rounding; with a few rows
+per call, as a sampler makes them, they save the numpy path's per-call overhead, which
+exceeds its arithmetic. :data:`AVAILABLE` is False when numba cannot be imported.
 """
 
 import importlib.util
@@ -18,37 +22,49 @@ from .expected_tables import LAGRANGE_CUBIC, MAX_EXPONENT, WEIGHT_SERIES
 #: Whether numba is installed (it is imported, and the kernel compiled, on first use).
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
-__all__ = ["AVAILABLE", "add_tree_depth"]
+__all__ = ["AVAILABLE", "add_cohort_depth", "assemble_grid"]
+
+
+def _series(m, x):
+    """Row ``m`` of the cell weights' Taylor series at x (Horner's rule)."""
+    acc = WEIGHT_SERIES[m, -1]
+    for k in range(WEIGHT_SERIES.shape[1] - 2, -1, -1):
+        acc = acc * x + WEIGHT_SERIES[m, k]
+    return acc
+
+
+def _cell_weights(x):
+    """The four weights of the exponentially fitted cell rule of
+    :func:`forward.expected_tables.cell_weights` at x = rate·step, as scalars: Taylor
+    series below x = 0.5, moments by recurrence above."""
+    if x < 0.5:
+        return _series(0, x), _series(1, x), _series(2, x), _series(3, x)
+    e = np.exp(-x)
+    m0 = -np.expm1(-x) / x
+    m1 = (m0 - e) / x
+    m2 = (2.0 * m1 - e) / x
+    m3 = (3.0 * m2 - e) / x
+    c = LAGRANGE_CUBIC
+    return (
+        c[0, 0] * m0 + c[0, 1] * m1 + c[0, 2] * m2 + c[0, 3] * m3,
+        c[1, 0] * m0 + c[1, 1] * m1 + c[1, 2] * m2 + c[1, 3] * m3,
+        c[2, 0] * m0 + c[2, 1] * m1 + c[2, 2] * m2 + c[2, 3] * m3,
+        c[3, 0] * m0 + c[3, 1] * m1 + c[3, 2] * m2 + c[3, 3] * m3,
+    )
 
 
 def _discounted(g, rate, step, out):
-    """Discounted tails of samples ``g`` (nodes ≥ 4) at ``rate`` (1/m) into ``out``.
-
-    Cells by the exponentially fitted rule of :func:`forward.expected_tables.cell_weights`
-    (Taylor series below x = 0.5, moments by recurrence above), then the backward recurrence.
-    """
+    """Discounted tails of samples ``g`` (nodes ≥ 4) at ``rate`` (1/m) into ``out``: cells
+    by :func:`_cell_weights`, then the backward recurrence."""
     nodes = g.size
     x = rate * step
-    w = np.empty(4)
-    if x < 0.5:
-        for m in range(4):
-            acc = WEIGHT_SERIES[m, -1]
-            for k in range(WEIGHT_SERIES.shape[1] - 2, -1, -1):
-                acc = acc * x + WEIGHT_SERIES[m, k]
-            w[m] = acc
-    else:
-        e = np.exp(-x)
-        moments = np.empty(4)
-        moments[0] = -np.expm1(-x) / x
-        for n in range(1, 4):
-            moments[n] = (n * moments[n - 1] - e) / x
-        w[:] = LAGRANGE_CUBIC @ moments
+    w0, w1, w2, w3 = _cell_weights(x)
     rho = np.exp(-x)
     out[nodes - 1] = 0.0
     for i in range(nodes - 2, -1, -1):
         before = g[i - 1] if i > 0 else 3.0 * g[0] - 3.0 * g[1] + g[2]
         after = g[i + 2] if i < nodes - 2 else 3.0 * g[i + 1] - 3.0 * g[i] + g[i - 1]
-        cell = w[0] * before + w[1] * g[i] + w[2] * g[i + 1] + w[3] * after
+        cell = w0 * before + w1 * g[i] + w2 * g[i + 1] + w3 * after
         out[i] = rho * out[i + 1] + step * cell
 
 
@@ -116,38 +132,157 @@ def _add_tree_depth(g, lo, step, a, b, ku, w, z, depth):
                 depth[r, k] += weight * total
 
 
-_COMPILED = []
+def _cohort_depth(
+    pdf, lo, step, stems, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z, depth
+):
+    """Add one cohort's tree optical depth at heights z (n, e) to ``depth``.
+
+    From the cohort's height density ``pdf`` (n, nodes) on each row's grid lo + step·i:
+    the density scaled to stems per m² times π R(h)² (R = r0 + r1·h), the crown chord
+    ends a_j, b_j (crown length ratio ``ratio``) and κu_j = ``extinction``·``node_favd``_j,
+    then :func:`_add_tree_depth`; the preparation numpy does in
+    :meth:`forward.expected.ExpectedWaveformModel._tree_depth`.
+    """
+    n, nodes = pdf.shape
+    n_nodes = s_lo.size
+    g = np.empty((n, nodes))
+    a = np.empty((n, n_nodes))
+    b = np.empty((n, n_nodes))
+    ku = np.empty((n, n_nodes))
+    mass = np.empty(nodes)
+    for r in range(n):
+        _discounted(pdf[r], 0.0, step[r], mass)  # mass[0]: the density's integral on the grid
+        scale = np.pi / 1e4 * stems[r] / (mass[0] if mass[0] > 0.0 else 1.0)
+        for i in range(nodes):
+            radius = r0[r] + r1[r] * (lo[r] + step[r] * i)
+            g[r, i] = scale * radius * radius * pdf[r, i]
+        c = ratio[r]
+        for j in range(n_nodes):
+            a[r, j] = max(1.0 - c + c * s_lo[j], 1e-12)
+            b[r, j] = 1.0 - c + c * s_hi[j]
+            ku[r, j] = extinction[r] * node_favd[j]
+    _add_tree_depth(g, lo, step, a, b, ku, w, z, depth)
 
 
-def _kernel():
-    """The compiled kernel: the helpers are compiled first, so that it calls them."""
+def _assemble_grid(
+    depth,
+    matrix,
+    first,
+    shift,
+    interp,
+    layers_to_samples,
+    under_scale,
+    under_top,
+    z0,
+    layer,
+    bins,
+    undershoot,
+):
+    """Canopy samples (n, bins), E[P(0)] (n,) and rows to redo (n,) of the grid path from
+    the tree optical depth on each row's grid: E[P] − 1 through the grid operator, the
+    uniform understory's Δ(P_trees·P_u) on the layers below its top (``under_scale`` =
+    κ·LAI_u/h_u, 0 for none; ``under_top`` = h_u), each row shifted by ``shift`` whole bins
+    (what falls outside the window is dropped), and samples below zero clipped keeping the
+    row's energy unless they undershoot by more than ``undershoot`` of it (those rows are
+    flagged); the assembly numpy does in
+    :meth:`forward.expected.ExpectedWaveformModel._canopy_grid`."""
+    n, nodes = depth.shape
+    width, edges = matrix.shape[1], interp.shape[1]
+    lost = np.empty((n, nodes))
+    for r in range(n):
+        for i in range(nodes):
+            lost[r, i] = np.expm1(-depth[r, i])
+    local = lost @ matrix
+    out = np.zeros((n, bins))
+    gap0 = np.empty(n)
+    redo = np.zeros(n, np.bool_)
+    for r in range(n):
+        gap0[r] = 1.0 + lost[r, 0]
+        if under_scale[r] > 0.0:
+            count = min(int(np.ceil((under_top[r] - z0[r]) / layer)) + 2, edges)
+            previous = 0.0
+            for e in range(count):
+                trees = 1.0
+                for i in range(nodes):
+                    trees += lost[r, i] * interp[i, e]
+                height = max(z0[r] + layer * e, 0.0)
+                intercepted = -np.expm1(-under_scale[r] * max(under_top[r] - height, 0.0))
+                product = trees * intercepted  # P_trees·(1 − P_u) at the edge
+                if e == 0:
+                    gap0[r] *= 1.0 - intercepted
+                else:  # layer e − 1 gains −Δ(P_trees·(1 − P_u))
+                    change = previous - product
+                    for k in range(width):
+                        local[r, k] += change * layers_to_samples[e - 1, k]
+                previous = product
+        start = shift[r] + first
+        lowest, total, positive = 0.0, 0.0, 0.0
+        for k in range(max(0, -start), min(width, bins - start)):
+            value = local[r, k]
+            out[r, start + k] = value
+            lowest = min(lowest, value)
+            total += value
+            positive += max(value, 0.0)
+        if lowest < 0.0:
+            redo[r] = lowest < -undershoot * max(1.0 - gap0[r], 2.2250738585072014e-308)
+            if not redo[r]:  # clip at zero, keeping the row's energy
+                scale = max(total / positive, 0.0) if positive > 0.0 else 0.0
+                for j in range(bins):
+                    out[r, j] = max(out[r, j], 0.0) * scale
+    return out, gap0, redo
+
+
+_COMPILED = {}
+
+
+def _kernels():
+    """The compiled kernels: helpers are compiled first, so that the kernels call them."""
     if not _COMPILED:
         from numba import njit
 
-        global _discounted, _hermite
+        global _series, _cell_weights, _discounted, _hermite, _add_tree_depth
+        _series = njit(cache=True)(_series)
+        _cell_weights = njit(cache=True)(_cell_weights)
         _discounted = njit(cache=True)(_discounted)
         _hermite = njit(cache=True)(_hermite)
-        _COMPILED.append(njit(cache=True)(_add_tree_depth))
-    return _COMPILED[0]
+        _add_tree_depth = njit(cache=True)(_add_tree_depth)
+        _COMPILED["cohort_depth"] = njit(cache=True)(_cohort_depth)
+        _COMPILED["assemble_grid"] = njit(cache=True)(_assemble_grid)
+    return _COMPILED
 
 
-def _as_kernel_array(x, shape):
-    """``x`` as a C-contiguous float64 array of ``shape`` (no copy if it already is one)."""
-    if (
-        isinstance(x, np.ndarray)
-        and x.shape == shape
-        and x.dtype == np.float64
-        and x.flags.c_contiguous
-    ):
-        return x
-    return np.ascontiguousarray(np.broadcast_to(x, shape), dtype=np.float64)
+def _f64(x):
+    """``x`` as a C-contiguous float64 array (no copy if it already is one)."""
+    return np.ascontiguousarray(x, dtype=np.float64)
 
 
-def add_tree_depth(g, lo, step, a, b, ku, w, z, depth):
-    """Compiled twin of :func:`forward.expected_depth.add_tree_depth`: the same arguments
-    (less the numpy path's table options) and the same result, ``depth`` updated in place.
-    """
-    n, n_nodes = g.shape[0], np.shape(a)[-1]
-    shapes = [g.shape, (n,), (n,), *[(n, n_nodes)] * 4, depth.shape]
-    arrays = [_as_kernel_array(x, shape) for x, shape in zip((g, lo, step, a, b, ku, w, z), shapes)]
-    _kernel()(*arrays, depth)
+def add_cohort_depth(
+    pdf, lo, step, stems, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z, depth
+):
+    """Compiled: add one cohort's tree optical depth at heights ``z`` (n, e) to ``depth``
+    (updated in place), from its height density on each row's grid (see
+    :func:`_cohort_depth`); the same numbers as the numpy path to rounding. Row arrays are
+    (n,), node arrays (J,), ``w`` (n, J)."""
+    arrays = (pdf, lo, step, stems, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z)
+    _kernels()["cohort_depth"](*(_f64(x) for x in arrays), depth)
+
+
+def assemble_grid(depth, operator, shift, under_scale, under_top, z0, layer, bins, undershoot):
+    """Compiled: canopy samples (n, ``bins``), E[P(0)] (n,) and the rows to recompute (n,)
+    of the grid path from the tree optical depth on the grid (see :func:`_assemble_grid`).
+    ``operator`` is the :func:`forward.expected_tables.grid_operator` tuple of the grid."""
+    matrix, first, interp, layers_to_samples = operator
+    return _kernels()["assemble_grid"](
+        _f64(depth),
+        _f64(matrix),
+        int(first),
+        np.ascontiguousarray(shift, dtype=np.int64),
+        _f64(interp),
+        _f64(layers_to_samples),
+        _f64(under_scale),
+        _f64(under_top),
+        _f64(z0),
+        float(layer),
+        int(bins),
+        float(undershoot),
+    )

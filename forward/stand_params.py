@@ -13,6 +13,7 @@ Height distributions are chosen through :data:`HEIGHT_DISTRIBUTIONS`; every fami
 parameterised by two numbers, ``mean`` and ``sd`` (m), documented per family.
 """
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 
@@ -23,6 +24,8 @@ from scipy.special import gamma, gammaincc, ndtr, ndtri
 from .crowns import SHAPE_NAMES
 
 # --- height distributions ------------------------------------------------------------
+
+_SQRT_2PI = math.sqrt(2.0 * math.pi)
 
 _WEIBULL_SHAPES = np.geomspace(0.3, 200.0, 2000)
 _WEIBULL_CV = np.sqrt(gamma(1 + 2 / _WEIBULL_SHAPES) / gamma(1 + 1 / _WEIBULL_SHAPES) ** 2 - 1)
@@ -60,10 +63,29 @@ def _truncnorm(mean, sd, truncation):
     return (low, np.full_like(low, truncation)), mean, sd
 
 
+def _raw_moments(standard, orders, loc, scale):
+    """E[h^k] for h = loc + scale·x, from the standard moments ``standard`` (..., K + 1)
+    = E[x^j], j ≤ K = max(orders): Σ_j C(k, j)·loc^(k−j)·scale^j·E[x^j], by Horner's rule
+    in loc. The orders k form the last axis of the result."""
+    loc, scale = np.asarray(loc, float), np.asarray(scale, float)
+    scaled = standard * scale[..., None] ** np.arange(standard.shape[-1])  # E[(scale·x)^j]
+    out = []
+    for k in np.atleast_1d(orders):
+        acc = scaled[..., 0]
+        for j in range(1, int(k) + 1):
+            acc = acc * loc + math.comb(int(k), j) * scaled[..., j]
+        out.append(acc)
+    return np.stack(out, axis=-1)
+
+
 # Closed forms through scipy.special for the hot path of the batched model: scipy.stats
 # method calls cost 0.1–0.5 ms each in argument handling, more than the model itself.
+# ``which = "moments"`` takes the orders k as ``x`` and returns E[h^k] on a last axis.
 def _weibull_fast(which, x, args, loc, scale):
     (k,) = args
+    if which == "moments":
+        j = np.arange(int(np.max(x)) + 1)
+        return _raw_moments(gamma(1.0 + j / np.asarray(k, float)[..., None]), x, loc, scale)
     if which == "pdf":
         y = np.maximum(x - loc, 0.0) / scale
         log_y = np.log(np.maximum(y, 1e-300))
@@ -83,6 +105,11 @@ def _weibull_fast(which, x, args, loc, scale):
 
 def _lognormal_fast(which, x, args, loc, scale):
     (sigma,) = args
+    if which == "moments":
+        j = np.arange(int(np.max(x)) + 1)
+        return _raw_moments(
+            np.exp(0.5 * j * j * np.asarray(sigma, float)[..., None] ** 2), x, loc, scale
+        )
     if which == "pdf":
         y = np.maximum(x - loc, 1e-300) / scale
         dens = np.exp(-0.5 * (np.log(y) / sigma) ** 2) / (y * scale * sigma * np.sqrt(2 * np.pi))
@@ -102,6 +129,9 @@ def _lognormal_fast(which, x, args, loc, scale):
 def _truncnorm_fast(which, x, args, loc, scale):
     a, b = args
     low, high = ndtr(a), ndtr(b)
+    if which == "moments":
+        standard = _truncated_standard_moments(a, b, high - low, int(np.max(x)))
+        return _raw_moments(standard, x, loc, scale)
     if which == "pdf":
         y = (x - loc) / scale
         dens = np.exp(-0.5 * y * y) / (np.sqrt(2 * np.pi) * scale * (high - low))
@@ -116,6 +146,19 @@ def _truncnorm_fast(which, x, args, loc, scale):
         return (loc * mass + scale * density) / (high - low)
     p = low + x * (high - low) if which == "ppf" else high - x * (high - low)
     return loc + scale * ndtri(p)
+
+
+def _truncated_standard_moments(a, b, mass, top):
+    """E[x^j], j ≤ ``top``, of the standard normal truncated to [a, b] (mass Φ(b) − Φ(a)),
+    on a last axis: m_j = (j − 1)·m_{j−2} + (a^{j−1}φ(a) − b^{j−1}φ(b))/mass."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    phi_a, phi_b = np.exp(-0.5 * a * a) / _SQRT_2PI, np.exp(-0.5 * b * b) / _SQRT_2PI
+    moments = [np.ones_like(a), (phi_a - phi_b) / mass]
+    pow_a, pow_b = np.ones_like(a), np.ones_like(b)
+    for j in range(2, top + 1):
+        pow_a, pow_b = pow_a * a, pow_b * b
+        moments.append((j - 1) * moments[j - 2] + (pow_a * phi_a - pow_b * phi_b) / mass)
+    return np.stack(moments[: top + 1], axis=-1)
 
 
 def _always_valid(mean, sd, truncation):
@@ -140,9 +183,10 @@ class HeightFamily:
     meaning : str
         What ``mean`` and ``sd`` mean for this family.
     fast : callable
-        ``fast(which, x, args, loc, scale)`` for ``which`` in pdf/ppf/isf/sf/mean_above:
-        the same functions in closed form through scipy.special (array-aware, no scipy.stats
-        overhead); :meth:`pdf`, :meth:`ppf`, :meth:`isf` and :meth:`sf` use it.
+        ``fast(which, x, args, loc, scale)`` for ``which`` in pdf/ppf/isf/sf/mean_above/
+        moments: the same functions in closed form through scipy.special (array-aware, no
+        scipy.stats overhead); :meth:`pdf`, :meth:`ppf`, :meth:`isf`, :meth:`sf`,
+        :meth:`mean_above` and :meth:`raw_moments` use it.
     """
 
     name: str
@@ -172,6 +216,10 @@ class HeightFamily:
     def sf(self, x, mean, sd, truncation=2.0):
         """Fraction of the trees taller than ``x`` (m)."""
         return self.fast("sf", x, *self.arguments(mean, sd, truncation))
+
+    def raw_moments(self, orders, mean, sd, truncation=2.0):
+        """E[h^k] (m^k) for each order k in ``orders``, on a last axis, in closed form."""
+        return self.fast("moments", orders, *self.arguments(mean, sd, truncation))
 
     def mean_above(self, x, mean, sd, truncation=2.0):
         """∫ₓ^∞ h·f(h) dh (m): the partial mean of the trees taller than ``x`` (m), in

@@ -41,6 +41,11 @@ def test_closed_forms_agree_with_scipy_stats(family, mean, sd):
     cuts = np.array([0.0, *fam.isf(np.array([0.5, 0.01]), mean, sd, 2.5)])
     reference = [frozen.expect(lambda h: h, lb=max(c, frozen.ppf(0.0))) for c in cuts]
     np.testing.assert_allclose(fam.mean_above(cuts, mean, sd, 2.5), reference, rtol=1e-7)
+    # raw moments E[h^k], the closed forms behind the stand mapping's crown area and volume
+    moments = fam.raw_moments((1, 2, 3), np.array([mean, mean]), np.array([sd, sd]), 2.5)
+    assert moments.shape == (2, 3)
+    expected = [frozen.moment(k) for k in (1, 2, 3)]
+    np.testing.assert_allclose(moments, [expected, expected], rtol=1e-9)
 
 
 def test_shape_mix_accepts_names_and_mappings():
