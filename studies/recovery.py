@@ -143,6 +143,7 @@ def one_shot(task):
     row["seconds"] = time.perf_counter() - start
     row["converged"] = result.converged
     row["max_tau"] = float(np.max(result.diagnostics["tau"]))
+    row["start_modes"] = int(result.diagnostics["start_modes"])
     row["log_prob"] = {"best_in_chain": result.diagnostics["map_log_prob"]}
     row["log_prob"]["truth"] = truth_log_prob(obs, settings)
     row["posterior"] = {name: result.summary()[name] for name in QUANTITIES}
@@ -220,6 +221,7 @@ def summarise(rows):
     gap = np.array([r["log_prob"]["truth"] - r["log_prob"]["best_in_chain"] for r in good])
     out["chain_below_truth_by_5_fraction"] = float(np.mean(gap > 5.0))
     out["converged_fraction"] = float(np.mean([r["converged"] for r in good]))
+    out["multi_mode_start_fraction"] = float(np.mean([r["start_modes"] > 1 for r in good]))
     out["median_seconds_per_shot"] = float(np.median([r["seconds"] for r in good]))
     return out
 

@@ -171,3 +171,35 @@ def test_map_search_reaches_the_basin_of_a_dense_even_aged_stand():
     truth = log_prob(space.to_unbounded(np.array([[obs.truth[n] for n in space.names]])))[0]
     estimate = find_map(log_prob, space, np.random.default_rng(5), SamplerSettings())
     assert estimate.log_prob >= truth - 1.0
+
+
+class TwoModeToy:
+    """Two well-separated Gaussian modes holding 70 % and 30 % of the mass."""
+
+    def __init__(self, space):
+        self.space = space
+        self.centres = np.array([[-8.0, -8.0], [8.0, 8.0]])
+        self.log_weights = np.log([0.7, 0.3])
+
+    def __call__(self, u):
+        x, log_jac = self.space.from_unbounded(u)
+        d2 = np.sum((x[:, None, :] - self.centres[None]) ** 2, axis=2) / 0.3**2
+        log_post = np.logaddexp(*(self.log_weights - 0.5 * d2).T)
+        log_post += self.space.log_prior(x) + log_jac
+        return np.column_stack([log_post, x[:, 0]])
+
+
+def test_walkers_start_in_every_basin_in_proportion_to_its_mass():
+    rng = np.random.default_rng(4)
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(2))
+    toy = TwoModeToy(space)
+    settings = SamplerSettings(n_walkers=40, max_steps=600, polish=16, mode_window=5.0)
+    run = run_sampler(toy, space, rng, settings)
+    assert run.start_modes == 2
+    first = run.chain[run.burn :, :, 0]  # the basins lie either side of u = 0
+    assert abs(np.mean(first < 0) - 0.7) < 0.1  # one basin alone would give 0 or 1
+    single = run_sampler(
+        toy, space, rng, SamplerSettings(n_walkers=40, max_steps=600, mode_window=0.0)
+    )
+    assert single.start_modes == 1
+    assert np.mean(single.chain[single.burn :, :, 0] < 0) in (0.0, 1.0)

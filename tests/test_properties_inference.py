@@ -7,21 +7,23 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lidarinv.inference import build_problem
+from lidarinv.inference import InversionSettings, build_problem
 from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
 
 
-@pytest.fixture(scope="module")
-def problem():
+@pytest.fixture(scope="module", params=[True, False], ids=["gain-marginalised", "gain-sampled"])
+def problem(request):
     obs = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], np.random.default_rng(4), explicit=False)
-    return build_problem(obs)
+    return build_problem(obs, InversionSettings(marginalise_gain=request.param))
 
 
 anything = st.floats(allow_nan=True, allow_infinity=True, width=64)
+#: Longest parameter vector (13 free with the gain sampled); rows are cut to the space's.
+WIDEST = 13
 
 
 @settings(max_examples=60, deadline=None)
-@given(fractions=st.lists(st.floats(0.0, 1.0), min_size=13, max_size=13))
+@given(fractions=st.lists(st.floats(0.0, 1.0), min_size=WIDEST, max_size=WIDEST))
 def test_inside_the_prior_box_log_posterior_is_finite_or_invalid(problem, fractions):
     space = problem.space
     x = np.array(
@@ -40,23 +42,24 @@ def test_inside_the_prior_box_log_posterior_is_finite_or_invalid(problem, fracti
 
 
 @settings(max_examples=60, deadline=None)
-@given(row=st.lists(anything, min_size=13, max_size=13))
+@given(row=st.lists(anything, min_size=WIDEST, max_size=WIDEST))
 def test_any_input_gives_a_number_or_minus_inf(problem, row):
-    value = problem.log_posterior.log_prob(np.array([row]))[0]
+    value = problem.log_posterior.log_prob(np.array([row[: problem.space.ndim]]))[0]
     assert not np.isnan(value) and value != np.inf
 
 
 @settings(max_examples=40, deadline=None)
-@given(row=st.lists(st.floats(-800, 800), min_size=13, max_size=13))
+@given(row=st.lists(st.floats(-800, 800), min_size=WIDEST, max_size=WIDEST))
 def test_unbounded_coordinates_never_give_nan(problem, row):
-    out = problem.log_posterior(np.array([row]))
+    out = problem.log_posterior(np.array([row[: problem.space.ndim]]))
     assert not np.isnan(out[0, 0]) and out[0, 0] != np.inf
 
 
 @settings(max_examples=30, deadline=None)
-@given(index=st.integers(0, 12), beyond=st.floats(1e-9, 1e6), low=st.booleans())
+@given(index=st.integers(0, WIDEST - 1), beyond=st.floats(1e-9, 1e6), low=st.booleans())
 def test_beyond_any_prior_bound_is_minus_inf(problem, index, beyond, low):
     space = problem.space
+    index %= space.ndim
     x = np.array([[0.5 * (p.prior.lower + p.prior.upper) for p in space.free]])
     p = space.free[index].prior
     x[0, index] = p.lower - beyond if low else p.upper + beyond

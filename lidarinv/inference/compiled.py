@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 from numba import njit
+from scipy.special import log_ndtr
 
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -52,6 +53,138 @@ def gaussian_exact(signal, gain, baseline, noise_sigma, shot_factor, scale, fixe
         np.ascontiguousarray(data.samples, dtype=np.float64),
         np.ascontiguousarray(data.exact),
     )
+
+
+@njit(cache=True)
+def _linear_fit(signal, baseline, noise_sigma, fixed, y):
+    n, bins = signal.shape
+    out = np.empty((n, 4))
+    for r in range(n):
+        s2 = noise_sigma[r] ** 2
+        ww = wr = log_var = 0.0
+        for j in range(bins):
+            v = s2 + fixed[j]
+            ww += signal[r, j] * signal[r, j] / v
+            wr += signal[r, j] * (y[j] - baseline[r]) / v
+            log_var += math.log(2.0 * math.pi * v)
+        a = wr / ww if ww > 0.0 else 0.0
+        chi2 = 0.0
+        for j in range(bins):  # a second pass: no cancellation between large sums
+            resid = y[j] - baseline[r] - a * signal[r, j]
+            chi2 += resid * resid / (s2 + fixed[j])
+        out[r, 0], out[r, 1], out[r, 2], out[r, 3] = ww, a, chi2, log_var
+    return out
+
+
+def linear_fit(signal, baseline, noise_sigma, fixed, data) -> np.ndarray:
+    """Weighted least-squares fit of the gain a in y = b + a·W + ε, per row.
+
+    Every bin of ``data`` (a WindowData) must be exactly recorded; the variance of bin j
+    is σn² + ``fixed``[j] (DN²), which does not depend on a. Returns (n, 4) columns:
+    Σ W²/v (1/DN² per unit reflectance², the gain's precision), the best gain â, the χ²
+    at â, and Σ ln(2π v).
+    """
+    return _linear_fit(
+        np.ascontiguousarray(signal, dtype=np.float64),
+        np.ascontiguousarray(baseline, dtype=np.float64),
+        np.ascontiguousarray(noise_sigma, dtype=np.float64),
+        np.ascontiguousarray(fixed, dtype=np.float64),
+        np.ascontiguousarray(data.samples, dtype=np.float64),
+    )
+
+
+@njit(cache=True)
+def _log_prior_form(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
+    """log p(x) of a prior in the common form of :class:`.priors.PriorForm`."""
+    if not (lower <= x <= upper):
+        return -math.inf
+    log_x = math.log(x) if log_scale else 0.0
+    y = ((log_x if log_scale else x) - w_mean) / w_sd  # 0 for the uniform kinds (sd = ∞)
+    return -log_x - 0.5 * y * y - log_norm
+
+
+@njit(cache=True)
+def _gain_log_likelihood(fit, unit, log_weights, span, form):
+    lower, upper, log_scale, w_mean, w_sd, log_norm = form
+    n, k = fit.shape[0], unit.size
+    out = np.empty(n)
+    moments = np.zeros((n, 2))
+    terms = np.empty(k)
+    weights = np.empty(k)
+    for r in range(n):
+        precision, best = fit[r, 0], fit[r, 1]
+        out[r] = -0.5 * (fit[r, 2] + fit[r, 3])
+        if not precision > 0.0:
+            continue  # the model carries no signal: the prior integrates to one
+        s = 1.0 / math.sqrt(precision)
+        if log_scale < 0.5:  # uniform or normal prior: a product of two Gaussians, exactly
+            prior_precision = 1.0 / (w_sd * w_sd)  # 0 for the uniform kind
+            both = precision + prior_precision
+            mean = (best * precision + w_mean * prior_precision) / both
+            gap = (best - w_mean) ** 2 / (s * s + w_sd * w_sd) if prior_precision > 0 else 0.0
+            out[r] += -log_norm - 0.5 * gap - 0.5 * math.log(both) + _HALF_LOG_2PI
+            moments[r, 0], moments[r, 1] = mean, 1.0 / math.sqrt(both)
+            continue
+        # log-scale prior, smooth on the scale of s: E[π] under N(â, s²), a quadrature rule
+        z_lo, z_hi = (lower - best) / s, (upper - best) / s
+        mode = min(max(0.0, z_lo), z_hi)
+        lo, hi = max(z_lo, mode - span), min(z_hi, mode + span)
+        top_w = top_t = -math.inf
+        for i in range(k):
+            z = lo + (hi - lo) * unit[i]
+            weights[i] = log_weights[i] - 0.5 * z * z
+            terms[i] = weights[i] + _log_prior_form(
+                best + s * z, lower, upper, True, w_mean, w_sd, log_norm
+            )
+            top_w, top_t = max(top_w, weights[i]), max(top_t, terms[i])
+        if top_t == -math.inf:
+            out[r] = -math.inf
+            continue
+        sum_w = sum_t = 0.0
+        for i in range(k):
+            sum_w += math.exp(weights[i] - top_w)
+            sum_t += math.exp(terms[i] - top_t)
+        out[r] += math.log(s) + _HALF_LOG_2PI + top_t + math.log(sum_t) - top_w - math.log(sum_w)
+        moments[r, 0], moments[r, 1] = best, s
+    return out, moments
+
+
+def gain_log_likelihood(fit, unit, log_weights, span, form):
+    """Log-likelihood (n,) with the gain integrated out against a prior, from the rows'
+    :func:`linear_fit`, and the Gaussian q (mean, sd) (n, 2) the integral was taken over.
+
+    The value is −½χ²(â) − ½Σ ln(2πv) + log ∫ π(a)·exp(−½ (a − â)²/s²) da, with
+    s = (Σ W²/v)^−½. For a uniform or normal prior the integrand is a Gaussian q times a
+    constant, integrated exactly over the prior's bounds. For a log-scale prior, q is
+    N(â, s²) and the integral s√(2π)·P_q(bounds)·E_q[π], the expectation a rule with nodes
+    ``unit`` (fractions of q's bulk within the bounds, ±``span`` sd about its mode) and
+    log weights ``log_weights``. P_q through :func:`scipy.special.log_ndtr`, accurate
+    however far the bounds lie in a tail. ``form`` is the prior's (lower, upper,
+    log_scale, w_mean, w_sd, log_norm) of :class:`.priors.PriorForm`. Rows whose model
+    carries no signal (Σ W²/v = 0) get q = (0, 0) and no integral (the prior's is one).
+    """
+    form = np.asarray(form, dtype=np.float64)
+    partial, moments = _gain_log_likelihood(
+        np.ascontiguousarray(fit, dtype=np.float64),
+        np.ascontiguousarray(unit, dtype=np.float64),
+        np.ascontiguousarray(log_weights, dtype=np.float64),
+        float(span),
+        form,
+    )
+    informative = moments[:, 1] > 0
+    if informative.any():
+        mean, sd = moments[informative, 0], moments[informative, 1]
+        partial[informative] += log_gaussian_mass((form[0] - mean) / sd, (form[1] - mean) / sd)
+    return partial, moments
+
+
+def log_gaussian_mass(lower, upper) -> np.ndarray:
+    """log(Φ(upper) − Φ(lower)) for lower < upper, accurate far into either tail."""
+    flip = lower > 0  # both in the upper tail: use the mirror image
+    a, b = np.where(flip, -upper, lower), np.where(flip, -lower, upper)
+    log_a, log_b = log_ndtr(a), log_ndtr(b)
+    with np.errstate(divide="ignore"):
+        return log_b + np.log1p(-np.exp(log_a - log_b))
 
 
 @njit(cache=True)

@@ -5,6 +5,7 @@ import numpy as np
 
 from lidarinv.observe.observation import Observation
 
+from .likelihood import model_moments
 from .posterior import BLOB_NAMES, BLOB_UNITS
 from .problem import InversionProblem, InversionSettings, build_problem
 from .result import QUANTILES, InversionResult
@@ -87,11 +88,16 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     blobs = _flat(run.blobs, run)
     derived = {name: blobs[:, i] for i, name in enumerate(BLOB_NAMES)}
     derived[FOOTPRINT_TOP] = footprint_top_height(problem, x, derived["density"], rng)
+    drawn = post.draw_marginalised(x, rng)  # e.g. the gain, from p(gain | θ, y)
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
     terms = post.evaluate(x[pick], keep_signal=True)
     good = np.isfinite(terms.log_posterior)
-    predictive = np.percentile(terms.mean[good], QUANTILES, axis=0)
     values = space.values(x[pick][good])
+    values.update({name: draws[pick][good] for name, draws in drawn.items()})
+    mean = model_moments(
+        terms.signal[good], values["gain"], values["baseline"], values["noise_sigma"]
+    )[0]
+    predictive = np.percentile(mean, QUANTILES, axis=0)
     top = float(np.max(values["top_height"]))
     profile_heights = np.linspace(0.0, top, 60)
     profile = post.mapping.crown_volume_profile(values, profile_heights)
@@ -105,13 +111,14 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     }
     return InversionResult(
         shot_id=problem.observation.shot_id,
-        parameter_names=space.names,
+        parameter_names=(*space.names, *drawn),
         units={**{p.name: p.units for p in space.parameters}, **BLOB_UNITS, FOOTPRINT_TOP: "m"},
-        samples=x,
+        samples=np.column_stack([x, *drawn.values()]),
         log_prob=log_prob,
         derived=derived,
         fixed={p.name: p.fixed for p in space.parameters if not p.free},
         diagnostics={
+            "sampled": list(space.names),  # the coordinates of tau and ess
             "tau": run.tau,
             "acceptance": run.acceptance,
             "ess": ess,
@@ -121,6 +128,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             "thin": run.thin,
             "converged": run.converged,
             "map_log_prob": float(np.max(run.log_prob)),
+            "start_modes": int(run.start_modes),
             "tau_history": [[int(i), t] for i, t in run.tau_history],
         },
         flags=list(run.flags),

@@ -28,6 +28,9 @@ class Parameter:
     fixed : float or None
         If set, the parameter is held at this value and not sampled.
     description : str
+    marginalised : bool
+        Integrated out of the likelihood against its prior (:mod:`.marginal`, the gain
+        only) instead of sampled; its posterior samples are drawn afterwards.
     """
 
     name: str
@@ -35,10 +38,12 @@ class Parameter:
     prior: object
     fixed: float | None = None
     description: str = ""
+    marginalised: bool = False
 
     @property
     def free(self) -> bool:
-        return self.fixed is None
+        """Sampled: neither fixed nor marginalised."""
+        return self.fixed is None and not self.marginalised
 
 
 #: Structural parameters of the default parameterisation: name → (units, description).
@@ -150,17 +155,24 @@ class ParameterSpace:
         if self._base is not None:
             joint += ", crown-base-v1"
         priors = ";".join(f"{p.name}:{p.prior.describe()}" for p in self.free)
-        return f"lidarinv logit transforms, {joint}; {priors}"
+        marginalised = "".join(f"; marginalised {name}" for name in self.marginalised)
+        return f"lidarinv logit transforms, {joint}; {priors}{marginalised}"
+
+    @property
+    def marginalised(self) -> tuple:
+        """Names of the parameters integrated out of the likelihood."""
+        return tuple(p.name for p in self.parameters if p.marginalised)
 
     def units(self, name) -> str:
         return self.by_name[name].units
 
     def values(self, x) -> dict:
-        """Every parameter's values (free from the columns of ``x`` (n, ndim), fixed filled)."""
+        """Every parameter's values (free from the columns of ``x`` (n, ndim), fixed filled;
+        marginalised ones are absent)."""
         x = np.atleast_2d(np.asarray(x, float))
         out = {p.name: x[:, i] for i, p in enumerate(self.free)}
         for p in self.parameters:
-            if not p.free:
+            if p.fixed is not None:
                 out[p.name] = np.full(x.shape[0], float(p.fixed))
         return out
 
@@ -223,6 +235,7 @@ class ParameterSpace:
                 "name": p.name,
                 "units": p.units,
                 "fixed": p.fixed,
+                "marginalised": p.marginalised,
                 "prior": p.prior.describe(),
                 "description": p.description,
             }

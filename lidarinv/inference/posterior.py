@@ -11,7 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import compiled
-from .likelihood import WindowData, model_moments, row_log_likelihood
+from .likelihood import WindowData, row_log_likelihood
+from .marginal import GainMarginal, gain_marginal_obstacle
 from .parameters import ParameterSpace
 from .stand_mapping import DERIVED, StandMapping
 
@@ -22,14 +23,19 @@ BLOB_UNITS = {"rh50": "m", "rh98": "m", **DERIVED}
 
 @dataclass
 class Evaluation:
-    """Terms of the log-posterior for a batch of rows (physical coordinates)."""
+    """Terms of the log-posterior for a batch of rows (physical coordinates).
+
+    ``signal`` (n, bins) is the model waveform W of each row (with ``keep_signal``);
+    ``gain_fit`` (n, 4) the least-squares fit of a marginalised gain
+    (:func:`.compiled.linear_fit`), NaN for rows outside the support.
+    """
 
     log_prior: np.ndarray
     log_likelihood: np.ndarray
     log_posterior: np.ndarray
     blobs: np.ndarray
     signal: np.ndarray | None = None
-    mean: np.ndarray | None = None
+    gain_fit: np.ndarray | None = None
 
 
 def rh_from_waveform(signal, axis, ground, levels=(0.5, 0.98)) -> np.ndarray:
@@ -70,6 +76,10 @@ class LogPosterior:
     fixed_discrepancy : array (bins,) (DN²), optional
         A discrepancy variance fixed by the observation (:mod:`.discrepancy`), used
         instead of (η·a·W)².
+
+    A gain marked ``marginalised`` in ``space`` is integrated out of the likelihood
+    (:mod:`.marginal`); that needs a variance independent of the gain and no censored or
+    saturated bins, and a ValueError says which is missing.
     """
 
     def __init__(
@@ -99,6 +109,16 @@ class LogPosterior:
             if fixed_discrepancy.shape != data.axis.shape or not good:
                 raise ValueError("fixed_discrepancy must be finite, ≥ 0 and one per window bin")
         self.fixed_discrepancy = fixed_discrepancy
+        self._fixed_variance = (
+            np.zeros(data.axis.size) if fixed_discrepancy is None else fixed_discrepancy
+        )
+        self.gain_marginal = None
+        if "gain" in space.marginalised:
+            scale = self.discrepancy if fixed_discrepancy is None else 0.0
+            obstacle = gain_marginal_obstacle(data, self.shot_factor, scale)
+            if obstacle is not None:
+                raise ValueError(f"the gain cannot be marginalised: {obstacle}")
+            self.gain_marginal = GainMarginal(space.by_name["gain"].prior)
         self.blob_names = BLOB_NAMES
 
     @property
@@ -106,50 +126,87 @@ class LogPosterior:
         return self.space.ndim
 
     def evaluate(self, x, keep_signal=False) -> Evaluation:
-        """Log-prior, log-likelihood, log-posterior and blobs of physical rows x (n, ndim)."""
+        """Log-prior, log-likelihood, log-posterior and blobs of physical rows x (n, ndim).
+
+        Rows outside the support are evaluated as a copy of a valid row, so that every
+        step works on the whole batch, and masked: −inf log-likelihood, NaN blobs.
+        """
         x = np.atleast_2d(np.asarray(x, float))
         if x.ndim != 2 or x.shape[1] != self.ndim:
             raise ValueError(f"parameters must have shape (n, {self.ndim}), got {x.shape}")
         n = x.shape[0]
-        blobs = np.full((n, len(BLOB_NAMES)), np.nan)
-        log_like = np.full(n, -np.inf)
-        signal = np.zeros((n, self.data.axis.size)) if keep_signal else None
-        mean = np.zeros((n, self.data.axis.size)) if keep_signal else None
         with np.errstate(all="ignore"):
-            log_prior = self.space.log_prior(np.where(np.isfinite(x), x, np.nan))
+            log_prior = self.space.log_prior(x)  # −inf for NaN, ±inf and out-of-bounds values
             values = self.space.values(x)
-            ok = np.isfinite(log_prior) & np.all(np.isfinite(x), axis=1)
-            ok[ok] = self.mapping.valid({k: v[ok] for k, v in values.items()})
-            if ok.any():
-                v = {k: val[ok] for k, val in values.items()}
-                vectors, derived = self.mapping.model_vectors(v)
+            ok = np.isfinite(log_prior) & self.mapping.valid(values)
+            if not ok.any():
+                return self._nothing(log_prior, keep_signal)
+            if not ok.all():
+                x = np.where(ok[:, None], x, x[np.argmax(ok)])
+                values = self.space.values(x)
+            vectors, derived = self.mapping.model_vectors(values)
+            if self.favd_range != (0.0, np.inf):
                 favd = derived["favd"]
                 plausible = (favd >= self.favd_range[0]) & (favd <= self.favd_range[1])
-                log_prior[np.flatnonzero(ok)[~plausible]] = -np.inf
-                result = self.model.evaluate(vectors)
+                log_prior = np.where(ok & ~plausible, -np.inf, log_prior)
+                ok &= plausible
+            result = self.model.evaluate(vectors)
+            ok &= result.valid
+            gain_fit = None
+            if self.gain_marginal is None:
                 like = row_log_likelihood(
                     self.data,
                     result.samples,
-                    v["gain"],
-                    v["baseline"],
-                    v["noise_sigma"],
+                    values["gain"],
+                    values["baseline"],
+                    values["noise_sigma"],
                     self.shot_factor,
                     self.discrepancy if self.fixed_discrepancy is None else 0.0,
                     self.fixed_discrepancy,
                 )
-                log_like[ok] = np.where(result.valid, like, -np.inf)
-                rh = compiled.relative_heights(
-                    result.samples, self.data.axis, v["ground_elevation"]
+            else:
+                gain_fit = compiled.linear_fit(
+                    result.samples,
+                    values["baseline"],
+                    values["noise_sigma"],
+                    self._fixed_variance,
+                    self.data,
                 )
-                blobs[ok] = np.column_stack([rh, *(derived[name] for name in DERIVED)])
-                if keep_signal:
-                    signal[ok] = result.samples
-                    mean[ok] = model_moments(
-                        result.samples, v["gain"], v["baseline"], v["noise_sigma"]
-                    )[0]
+                like = self.gain_marginal.log_likelihood(gain_fit)
+                gain_fit[~ok] = np.nan
+            log_like = np.where(ok, like, -np.inf)
+            blobs = np.empty((n, len(BLOB_NAMES)))
+            blobs[:, :2] = compiled.relative_heights(
+                result.samples, self.data.axis, values["ground_elevation"]
+            )
+            for column, name in enumerate(DERIVED, start=2):
+                blobs[:, column] = derived[name]
+            blobs[~ok] = np.nan
             log_post = log_prior + log_like
         log_post = np.where(np.isfinite(log_post), log_post, -np.inf)
-        return Evaluation(log_prior, log_like, log_post, blobs, signal, mean)
+        signal = np.where(ok[:, None], result.samples, 0.0) if keep_signal else None
+        return Evaluation(log_prior, log_like, log_post, blobs, signal, gain_fit)
+
+    def _nothing(self, log_prior, keep_signal) -> Evaluation:
+        """The terms of a batch without a single valid row."""
+        n = log_prior.shape[0]
+        blobs = np.full((n, len(BLOB_NAMES)), np.nan)
+        minus_inf = np.full(n, -np.inf)
+        signal = np.zeros((n, self.data.axis.size)) if keep_signal else None
+        gain_fit = None if self.gain_marginal is None else np.full((n, 4), np.nan)
+        return Evaluation(log_prior, minus_inf, minus_inf.copy(), blobs, signal, gain_fit)
+
+    def draw_marginalised(self, x, rng) -> dict:
+        """Posterior draws of the marginalised parameters, one per row of ``x`` (physical
+        coordinates of posterior samples): ``{"gain": (n,)}``, or ``{}`` if none; NaN
+        for rows outside the support."""
+        if self.gain_marginal is None:
+            return {}
+        fit = self.evaluate(x).gain_fit
+        good = np.all(np.isfinite(fit), axis=1)
+        gain = np.full(fit.shape[0], np.nan)
+        gain[good] = self.gain_marginal.draw(fit[good], rng)
+        return {"gain": gain}
 
     def log_prob(self, x) -> np.ndarray:
         """Log-posterior density of physical rows x (n, ndim): −inf outside the support."""

@@ -14,6 +14,7 @@ from lidarinv.observe.observation import Observation
 from .coordinates import DEFAULT_RIDGES
 from .discrepancy import DISCREPANCY_MODELS
 from .likelihood import WindowData
+from .marginal import gain_marginal_obstacle
 from .parameters import DEFAULT_STRUCTURE_PRIORS, default_space, read_priors_file
 from .posterior import LogPosterior
 from .priors import LogUniform, TruncatedNormal, Uniform
@@ -34,6 +35,13 @@ class InversionSettings:
         Use the shot's transmit pulse when the file has one.
     noise_method : str
         Noise estimate for the priors: ``auto``, ``ends``, ``histogram`` or ``product``.
+    marginalise_gain : bool
+        Integrate the gain out of the likelihood analytically (:mod:`.marginal`) where
+        that is exact: no shot noise, a discrepancy fixed by the observation (not
+        ``"model"``), no censored or saturated bins in the window, and the gain not
+        fixed. The sampler then has one dimension fewer and no gain–ρv/ρg ridge; each
+        posterior sample's gain is drawn from its conditional density. Otherwise, or if
+        False, the gain is sampled.
     sample_noise : bool
         Sample the baseline and noise σ; if False, hold them at the shot's estimates from
         the signal-free bins (two fewer free parameters; a GEDI window has hundreds of such
@@ -77,6 +85,7 @@ class InversionSettings:
     instrument: str = "gedi"
     use_measured_pulse: bool = True
     noise_method: str = "auto"
+    marginalise_gain: bool = True
     sample_noise: bool = True
     n_sigma: float = 4.0
     margin_above_m: float = 10.0
@@ -213,6 +222,11 @@ def build_problem(obs: Observation, settings: InversionSettings | None = None) -
     if not settings.sample_noise:
         overrides.setdefault("baseline", {"fixed": float(b)})
         overrides.setdefault("noise_sigma", {"fixed": float(sigma)})
+    fixed_discrepancy = _fixed_discrepancy(window, analysis, settings, smooth_bins=1.0)
+    if settings.marginalise_gain and overrides.get("gain", {}).get("fixed") is None:
+        scale = settings.discrepancy if fixed_discrepancy is None else 0.0
+        if gain_marginal_obstacle(window, settings.shot_factor, scale) is None:
+            overrides["gain"] = {**overrides.get("gain", {}), "marginalised": True}
     space = default_space(nuisance, overrides, settings.ridges)
     mapping = StandMapping(default_template(settings.shape_pair), settings.shape_pair)
     model = ExpectedWaveformModel(
@@ -230,6 +244,6 @@ def build_problem(obs: Observation, settings: InversionSettings | None = None) -
         settings.shot_factor,
         settings.discrepancy,
         (0.0, np.inf) if settings.favd_range is None else settings.favd_range,
-        _fixed_discrepancy(window, analysis, settings, smooth_bins=1.0),
+        fixed_discrepancy,
     )
     return InversionProblem(obs, analysis, window, instrument, log_posterior, settings)

@@ -21,7 +21,8 @@ class InversionResult:
     ----------
     shot_id : int or str
     parameter_names : tuple of str
-        Free parameters, the columns of ``samples``.
+        Free parameters, the columns of ``samples``: the sampled ones, then any
+        marginalised one (the gain) drawn from its conditional posterior per sample.
     units : dict
         Units of every parameter and derived quantity.
     samples : array (m, ndim)
@@ -32,8 +33,9 @@ class InversionResult:
     fixed : dict
         Fixed parameters and their values.
     diagnostics : dict
-        ``tau`` (per parameter, steps), ``acceptance``, ``n_steps``, ``n_walkers``,
-        ``burn``, ``thin``, ``ess`` (per parameter), ``converged``, ``map_log_prob``.
+        ``tau`` (steps) and ``ess`` per sampled coordinate (named in ``sampled``),
+        ``acceptance``, ``n_steps``, ``n_walkers``, ``burn``, ``thin``, ``converged``,
+        ``map_log_prob``.
     flags : list of str
         Warnings (non-convergence, low acceptance, ...).
     profile_heights : array (m)

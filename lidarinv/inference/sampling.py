@@ -4,11 +4,16 @@ from dataclasses import dataclass, field
 
 import emcee
 import numpy as np
-from scipy.optimize import minimize
 from tqdm.auto import tqdm
+
+from .lockstep import minimize_in_lockstep
 
 #: Large finite objective for the optimiser where the log-density is −inf.
 _PENALTY = 1e12
+
+#: Screened starts closer than this (unbounded units, where a prior spans about ±5) to a
+#: better one are not polished: they would most likely end in the same optimum.
+POLISH_SPACING = 0.25
 
 
 @dataclass(frozen=True)
@@ -41,19 +46,24 @@ class SamplerSettings:
     screen_iterations : int
         L-BFGS iterations of each start before the best are polished.
     polish : int
-        Screened starts, the best ones, run on to convergence. The best few of many
+        Screened starts, the best ones at least :data:`POLISH_SPACING` apart, run on to
+        convergence. The best few of many
         prior draws often share one basin, and a wrong basin is one the ensemble never
         leaves: with 512 draws and 4 starts, 7 of 100 inverse-crime recovery shots ended
         more than 5 below the true parameters' log-posterior; with these defaults, 3.
     ball : float
-        Scale of the initial ball: walkers start from N(MAP, ball²·Σ) with Σ the Laplace
-        covariance at the MAP.
+        Scale of the initial balls: walkers start from N(mode, ball²·Σ) with Σ the Laplace
+        covariance at the mode.
+    mode_window : float
+        Polished optima within this much of the best log-posterior, and in distinct
+        basins, each start some walkers (in proportion to their Laplace mass
+        exp(log p)·√det Σ); 0 starts every walker around the MAP. An ensemble rarely
+        crosses between the ends of the posterior's flat ridges, so a start that already
+        spans them samples them both.
     moves : tuple of (str, float)
-        Move mixture: names from :data:`MOVES` and their weights. Short DE jumps and
-        snooker moves cross the curved ridges of these posteriors faster than the
-        standard DE jump: on six GEDI-like shots (10 free, 8000 steps) the median largest
-        τ fell from 136 to 104 steps and the worst from 383 to 219, against DE/snooker/
-        stretch at 0.7/0.1/0.2 (README, "Sampling").
+        Move mixture: names from :data:`MOVES` and their weights. τ alone does not rank
+        mixtures: DE with shorter jumps halved τ on hard shots, but only by staying in
+        part of the posterior (README, "Sampling").
     """
 
     n_walkers: int = 32
@@ -68,21 +78,16 @@ class SamplerSettings:
     screen_iterations: int = 30
     polish: int = 3
     ball: float = 1.0
-    moves: tuple = (("de", 0.5), ("de-short", 0.3), ("de-snooker", 0.2))
+    mode_window: float = 5.0
+    moves: tuple = (("de", 0.7), ("de-snooker", 0.1), ("stretch", 0.2))
 
 
-#: Jump of the ``de-short`` move as a fraction of the standard DE jump 2.38/√(2·ndim).
-SHORT_DE_FRACTION = 0.55
-
-#: Move constructors by name, each called with the number of sampled dimensions.
+#: Move constructors by name.
 MOVES = {
-    "de": lambda ndim: emcee.moves.DEMove(),
-    "de-short": lambda ndim: emcee.moves.DEMove(
-        gamma0=SHORT_DE_FRACTION * 2.38 / np.sqrt(2.0 * ndim)
-    ),
-    "de-snooker": lambda ndim: emcee.moves.DESnookerMove(),
-    "stretch": lambda ndim: emcee.moves.StretchMove(),
-    "walk": lambda ndim: emcee.moves.WalkMove(),
+    "de": emcee.moves.DEMove,
+    "de-snooker": emcee.moves.DESnookerMove,
+    "stretch": emcee.moves.StretchMove,
+    "walk": emcee.moves.WalkMove,
 }
 
 
@@ -95,6 +100,21 @@ class MapEstimate:
     converged: bool
     evaluations: int
     covariance: np.ndarray | None = None
+    optima: list = field(default_factory=list)  # (u, log_prob) of every polished optimum
+
+
+@dataclass
+class Mode:
+    """One basin of the posterior: an optimum, its log-posterior and Laplace covariance."""
+
+    u: np.ndarray
+    log_prob: float
+    covariance: np.ndarray
+
+    @property
+    def log_mass(self) -> float:
+        """log of the Laplace mass exp(log p)·√det Σ (up to a constant)."""
+        return self.log_prob + 0.5 * np.linalg.slogdet(self.covariance)[1]
 
 
 @dataclass
@@ -111,19 +131,24 @@ class SamplerRun:
     burn: int
     thin: int
     flags: list = field(default_factory=list)
+    start_modes: int = 1  # basins the walkers started in (0 for a resumed chain)
 
 
 def _batched_objective(log_prob, step=1e-5):
-    """−log p and its forward-difference gradient from one batched call of ndim + 1 rows."""
+    """−log p and its forward-difference gradients at points U (k, ndim), from one batched
+    call of k·(ndim + 1) rows."""
     counter = {"n": 0}
 
-    def objective(u):
-        rows = np.vstack([u, u + step * np.eye(u.size)])
-        values = log_prob(rows)
+    def objective(points):
+        k, ndim = points.shape
+        rows = (points[:, None, :] + step * np.vstack([np.zeros(ndim), np.eye(ndim)])).reshape(
+            -1, ndim
+        )
+        values = log_prob(rows).reshape(k, ndim + 1)
         counter["n"] += rows.shape[0]
         f = np.where(np.isfinite(values), -values, _PENALTY)
-        grad = (f[1:] - f[0]) / step
-        return float(f[0]), np.where(np.isfinite(grad), grad, 0.0)
+        grad = (f[:, 1:] - f[:, :1]) / step
+        return f[:, 0], np.where(np.isfinite(grad), grad, 0.0)
 
     return objective, counter
 
@@ -131,7 +156,8 @@ def _batched_objective(log_prob, step=1e-5):
 def find_map(log_prob, space, rng, settings: SamplerSettings) -> MapEstimate:
     """Maximise ``log_prob`` (of unbounded coordinates): the best ``starts`` of
     ``candidates`` prior draws run ``screen_iterations`` of L-BFGS-B each, and the best
-    ``polish`` of those run on to convergence."""
+    ``polish`` of those run on to convergence; the runs of each stage go in lockstep,
+    their evaluations batched (:mod:`.lockstep`)."""
     draws = space.to_unbounded(space.sample_prior(rng, settings.candidates))
     draws = draws[np.all(np.isfinite(draws), axis=1)]
     scores = log_prob(draws)
@@ -140,20 +166,56 @@ def find_map(log_prob, space, rng, settings: SamplerSettings) -> MapEstimate:
     order = np.argsort(-np.where(np.isfinite(scores), scores, -np.inf))
     objective, counter = _batched_objective(log_prob)
     best = MapEstimate(draws[order[0]], float(scores[order[0]]), False, draws.shape[0])
-    screen = {"maxiter": settings.screen_iterations}
-    screened = [
-        minimize(objective, start, jac=True, method="L-BFGS-B", options=screen)
-        for start in draws[order[: settings.starts]]
-    ]
+    screened = minimize_in_lockstep(
+        objective,
+        draws[order[: settings.starts]],
+        method="L-BFGS-B",
+        options={"maxiter": settings.screen_iterations},
+    )
     screened.sort(key=lambda result: result.fun)
-    for start in screened[: settings.polish]:
-        result = minimize(objective, start.x, jac=True, method="L-BFGS-B", options={"maxiter": 400})
+    starts = [result.x for result in _spread_out(screened, settings.polish, POLISH_SPACING)]
+    polished = minimize_in_lockstep(objective, starts, method="L-BFGS-B", options={"maxiter": 400})
+    optima = []
+    for result in polished:
         value = -float(result.fun)
+        if result.fun < _PENALTY:
+            optima.append((result.x, value))
         if value > best.log_prob and result.fun < _PENALTY:
             best = MapEstimate(result.x, value, bool(result.success), 0)
     best.evaluations = draws.shape[0] + counter["n"]
     best.covariance = laplace_covariance(log_prob, best.u)
+    best.optima = optima
     return best
+
+
+def _spread_out(results, count, spacing):
+    """The first ``count`` of ``results`` (best first) that lie more than ``spacing``
+    (unbounded units) from every one taken before them."""
+    taken = []
+    for result in results:
+        if all(np.linalg.norm(result.x - other.x) > spacing for other in taken):
+            taken.append(result)
+        if len(taken) == count:
+            break
+    return taken
+
+
+def distinct_modes(log_prob, estimate: MapEstimate, window, separation=3.0) -> list:
+    """The MAP and the other optima of ``estimate`` within ``window`` of its log-posterior
+    that lie in distinct basins: more than ``separation`` (Mahalanobis, under the Laplace
+    covariance of each kept mode) from every mode kept before them; best first."""
+    modes = [Mode(estimate.u, estimate.log_prob, estimate.covariance)]
+    for u, value in sorted(estimate.optima, key=lambda optimum: -optimum[1]):
+        if value < estimate.log_prob - window:
+            break
+        if all(_mahalanobis(u, mode) > separation for mode in modes):
+            modes.append(Mode(u, value, laplace_covariance(log_prob, u)))
+    return modes
+
+
+def _mahalanobis(u, mode: Mode) -> float:
+    d = np.asarray(u) - mode.u
+    return float(np.sqrt(d @ np.linalg.solve(mode.covariance, d)))
 
 
 def laplace_covariance(log_prob, u, step=1e-3, max_variance=4.0) -> np.ndarray:
@@ -204,22 +266,35 @@ def burn_in(n_steps, tau, burn_taus) -> int:
     return min(third, int(np.ceil(burn_taus * np.max(tau))))
 
 
-def _initial_ball(log_prob, centre, covariance, n_walkers, rng):
-    """Walkers drawn from N(centre, covariance) with finite log-probability (the spread
-    halves for redrawn walkers until all are finite)."""
-    factor = np.linalg.cholesky(covariance + 1e-12 * np.eye(centre.size))
+def _initial_ball(log_prob, modes, ball, n_walkers, rng):
+    """Walkers drawn from N(mode, ball²·Σ), each mode's share in proportion to its
+    Laplace mass (largest remainders), with finite log-probability (the spread halves for
+    redrawn walkers until all are finite)."""
+    log_mass = np.array([mode.log_mass for mode in modes])
+    share = np.exp(log_mass - log_mass.max())
+    share *= n_walkers / share.sum()
+    counts = np.floor(share).astype(int)
+    remainder = np.argsort(counts - share)[: n_walkers - counts.sum()]  # largest remainders
+    counts[remainder] += 1
+    owner = np.repeat(np.arange(len(modes)), counts)
+    factors = [
+        ball * np.linalg.cholesky(mode.covariance + 1e-12 * np.eye(mode.u.size)) for mode in modes
+    ]
+    centres = np.array([mode.u for mode in modes])[owner]
 
-    def draw(k, scale):
-        return centre + scale * rng.standard_normal((k, centre.size)) @ factor.T
+    def draw(rows, scale):
+        noise = rng.standard_normal((rows.size, centres.shape[1]))
+        spread = np.einsum("kij,kj->ki", np.array(factors)[owner[rows]], noise)
+        return centres[rows] + scale * spread
 
-    walkers, scale = draw(n_walkers, 1.0), 1.0
+    walkers, scale = draw(np.arange(n_walkers), 1.0), 1.0
     for _ in range(50):
         bad = ~np.isfinite(log_prob(walkers))
         if not bad.any():
             return walkers
         scale /= 2
-        walkers[bad] = draw(int(bad.sum()), scale)
-    walkers[bad] = centre
+        walkers[bad] = draw(np.flatnonzero(bad), scale)
+    walkers[bad] = centres[bad]
     return walkers
 
 
@@ -261,7 +336,7 @@ def run_sampler(
     unknown = sorted({name for name, _ in s.moves} - set(MOVES))
     if unknown:
         raise ValueError(f"unknown move(s) {unknown}; known: {sorted(MOVES)}")
-    moves = [(MOVES[name](ndim), weight) for name, weight in s.moves]
+    moves = [(MOVES[name](), weight) for name, weight in s.moves]
     resume = backend is not None and backend.initialized and backend.iteration > 0
     if resume and backend.shape != (n_walkers, ndim):
         raise ValueError(
@@ -273,20 +348,20 @@ def run_sampler(
     if coordinates is not None and isinstance(backend, emcee.backends.HDFBackend):
         _check_coordinates(backend, coordinates, resume)
     log_prob = lambda u: log_posterior(u)[:, 0]  # noqa: E731
-    flags = []
+    flags, modes = [], []
     if resume:
         state = backend.get_last_sample()
     else:
         sampler.random_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
         if start is None:
             estimate = find_map(log_prob, space, rng, s)
-            centre, covariance = estimate.u, estimate.covariance
+            modes = distinct_modes(log_prob, estimate, s.mode_window)
             if not estimate.converged:
                 flags.append("MAP optimiser did not report convergence")
         else:
             centre = np.asarray(start, float)
-            covariance = laplace_covariance(log_prob, centre)
-        state = _initial_ball(log_prob, centre, s.ball**2 * covariance, n_walkers, rng)
+            modes = [Mode(centre, 0.0, laplace_covariance(log_prob, centre))]
+        state = _initial_ball(log_prob, modes, s.ball, n_walkers, rng)
     history, tau, converged = [], np.full(ndim, np.inf), False
     bar = tqdm(total=s.max_steps, disable=not progress, desc="sampling", unit="step")
     bar.update(sampler.iteration)
@@ -330,4 +405,5 @@ def run_sampler(
         burn=burn,
         thin=thin,
         flags=flags,
+        start_modes=len(modes),
     )

@@ -1,7 +1,8 @@
 """From inversion parameters to the expected-waveform model, and the derived quantities.
 
 Cover c and crown plant area index L fix stem density and FAVD through the Poisson-stand
-identities (for a height density f and crown radius R(h) = r0 + r1·h):
+identities (for a height density f and crown radius R(h) = r0 + r1·h; the expectations
+are closed forms in the raw moments E[h^k] of the height family):
 
     c = 1 − exp(−λ·E[π R²])             →  λ = −ln(1 − c) / E[π R²]   (stems/m²)
     L = λ·FAVD·Σ_s m_s κ_s v_s E[π R² ℓ h]  →  FAVD = L / (λ·Σ …)     (m²/m³)
@@ -9,7 +10,8 @@ identities (for a height density f and crown radius R(h) = r0 + r1·h):
 with m_s the shape fractions, κ_s the per-shape FAVD ratios, v_s the volume fractions of
 the shapes and ℓ the crown length ratio. The top height is mean + 2·sd of the height
 family: for the default truncated normal (truncated at ±2 sd) it is the tallest tree.
-Expectations over h use Gauss–Legendre quadrature on the bulk of each row's distribution.
+The crown-volume profile, whose integrand has kinks at the crown ends, uses Gauss–Legendre
+quadrature on the bulk of each row's distribution.
 """
 
 import numpy as np
@@ -66,16 +68,11 @@ class StandMapping:
     shape_pair : (str, str)
         Shapes mixed by ``cone_fraction``: the first gets ``cone_fraction``, the second
         the rest.
-    nodes : int
-        Gauss–Legendre nodes of the height expectations (smooth integrands over the
-        truncated height density: 16 nodes reach round-off).
     profile_nodes : int
         Nodes of the crown-volume profile, whose integrand has kinks at the crown ends.
     """
 
-    def __init__(
-        self, template: StandParams, shape_pair=("cone", "ellipsoid"), nodes=16, profile_nodes=48
-    ):
+    def __init__(self, template: StandParams, shape_pair=("cone", "ellipsoid"), profile_nodes=48):
         if template.cohort2_fraction > 0:
             raise ValueError("the default parameterisation models a single cohort")
         unknown = [s for s in shape_pair if s not in CROWN_SHAPES]
@@ -85,7 +82,6 @@ class StandMapping:
         self.shape_pair = tuple(shape_pair)
         self.family = HEIGHT_DISTRIBUTIONS[template.height_family]
         self.truncation = template.height_truncation
-        self._rule = _unit_rule(nodes)
         self._profile_rule = _unit_rule(profile_nodes)
         ratio = dict(zip(CROWN_SHAPES, template.favd_ratio))
         self._volume = np.array([CROWN_SHAPES[s].volume_fraction for s in shape_pair])
@@ -93,9 +89,10 @@ class StandMapping:
         self.model_free = MODEL_FIELDS + tuple(f"mix_{s}" for s in shape_pair)
         assert all(f in MIX_FIELDS for f in self.model_free[len(MODEL_FIELDS) :])
 
-    def _quadrature(self, mean, sd, lo=None, rule=None):
-        """Heights (n, q) and weights (n, q) summing to the probability mass on [lo, top]."""
-        x, w = self._rule if rule is None else rule
+    def _quadrature(self, mean, sd, lo=None):
+        """Heights (n, q) and weights (n, q) summing to the probability mass on [lo, top],
+        on the profile's rule."""
+        x, w = self._profile_rule
         t = self.truncation
         low = self.family.ppf(1e-9, mean, sd, t) if lo is None else lo
         high = self.family.isf(1e-9, mean, sd, t)
@@ -104,9 +101,9 @@ class StandMapping:
         weight = (high - low)[:, None] * w * self.family.pdf(h, mean[:, None], sd[:, None], t)
         return h, weight
 
-    def _moments(self, v, rule=None):
+    def _moments(self, v):
         mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
-        h, weight = self._quadrature(mean, sd, rule=rule)
+        h, weight = self._quadrature(mean, sd)
         total = weight.sum(axis=1)
         p = weight / np.where(total > 0, total, 1.0)[:, None]
         radius = self.template.crown_radius_intercept + v["crown_radius_slope"][:, None] * h
@@ -128,12 +125,19 @@ class StandMapping:
         """Expected-model vectors (n, len(model_free)) and scalar derived quantities.
 
         ``v`` maps every parameter name to an (n,) array; rows must be :meth:`valid`.
+        Expectations over heights are closed forms of the raw moments E[h^k], k ≤ 3.
         """
-        mean, sd, h, p, area = self._moments(v)
+        mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
+        m1, m2, m3 = np.moveaxis(
+            self.family.raw_moments((1, 2, 3), mean, sd, self.truncation), -1, 0
+        )
+        r0, r1 = self.template.crown_radius_intercept, v["crown_radius_slope"]
         ratio = v["crown_length_ratio"]
         mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
-        per_stem_area = np.sum(p * area, axis=1)
-        crown_volume = np.sum(p * area * h, axis=1) * ratio  # π R² ℓ h, before shape
+        per_stem_area = np.pi * (r0 * r0 + 2.0 * r0 * r1 * m1 + r1 * r1 * m2)  # E[π R²]
+        crown_volume = (
+            np.pi * (r0 * r0 * m1 + 2.0 * r0 * r1 * m2 + r1 * r1 * m3) * ratio
+        )  # E[π R² ℓ h]
         lam = -np.log1p(-v["cover"]) / per_stem_area
         volume = lam * crown_volume * (mix @ self._volume)
         favd = v["pai"] / (lam * crown_volume * (mix @ self._leaf))
@@ -158,7 +162,7 @@ class StandMapping:
             "crown_area": per_stem_area,  # m², not a blob: for the discrepancy model
             "density": lam * 1e4,
             "favd": favd,
-            "mean_height": np.sum(p * h, axis=1),
+            "mean_height": m1,
             "dominant_height": self._dominant_height(mean, sd, lam * 1e4),
             "crown_volume": volume * 1e4,
             "lai": v["pai"] + v["understory_lai"],
@@ -209,7 +213,7 @@ class StandMapping:
     def crown_volume_profile(self, v, z) -> np.ndarray:
         """Crown volume per unit ground area and height (m³/m²/m) at heights z (m), (n, nz)."""
         z = np.asarray(z, float)
-        mean, _sd, h, p, area = self._moments(v, self._profile_rule)
+        mean, _sd, h, p, area = self._moments(v)
         ratio = v["crown_length_ratio"][:, None, None]
         mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
         lam = -np.log1p(-v["cover"]) / np.sum(p * area, axis=1)
