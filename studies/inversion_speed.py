@@ -79,6 +79,9 @@ def _run(settings, n, seed, name):
                 "max_tau": float(np.max(d["tau"])),
                 "converged": result.converged,
                 "free_parameters": len(result.parameter_names),
+                "sampled_parameters": len(d["sampled"]),
+                "start_seconds": d["seconds"]["start"],
+                "sampling_seconds": d["seconds"]["sampling"],
                 "window_bins": int(result.axis.size),
                 "microseconds_per_evaluation": per_row * 1e6,
             }

@@ -16,7 +16,7 @@ parameters' log-posterior: with ``--inverse-crime`` those are search failures.
                                [--inverse-crime] [--discrepancy 0.2]
                                [--discrepancy-model observed] [--seed 1] [--tag _NAME]
                                [--map-search CANDIDATES STARTS SCREEN POLISH]
-                               [--truth study|prior]
+                               [--truth study|prior] [--mode-window 5] [--sample-gain]
 
 Writes studies/output/recovery[_inverse_crime]/{summary.json,shots.json,*.png}.
 """
@@ -51,6 +51,7 @@ QUANTITIES = (
     "footprint_top_height",
     "mean_height",
     "ground_elevation",
+    "gain",
 )
 
 
@@ -275,6 +276,15 @@ def main():
         help="stands from the study's ranges or from the inversion's structural prior",
     )
     parser.add_argument(
+        "--mode-window",
+        type=float,
+        default=InversionSettings().sampler.mode_window,
+        help="start walkers in every basin within this of the best log-posterior (0: one)",
+    )
+    parser.add_argument(
+        "--sample-gain", action="store_true", help="sample the gain instead of integrating it out"
+    )
+    parser.add_argument(
         "--map-search",
         nargs=4,
         type=int,
@@ -283,9 +293,11 @@ def main():
     )
     args = parser.parse_args()
     settings = InversionSettings(
-        discrepancy=args.discrepancy, discrepancy_model=args.discrepancy_model
+        discrepancy=args.discrepancy,
+        discrepancy_model=args.discrepancy_model,
+        marginalise_gain=not args.sample_gain,
     )
-    sampler = replace(settings.sampler, max_steps=args.max_steps)
+    sampler = replace(settings.sampler, max_steps=args.max_steps, mode_window=args.mode_window)
     if args.map_search:
         sampler = replace(sampler, **dict(zip(MAP_SEARCH_FIELDS, args.map_search)))
     settings = replace(settings, sampler=sampler)
@@ -312,6 +324,8 @@ def main():
             "discrepancy": args.discrepancy,
             "discrepancy_model": args.discrepancy_model,
             "map_search": {k: getattr(settings.sampler, k) for k in MAP_SEARCH_FIELDS},
+            "mode_window": args.mode_window,
+            "gain_marginalised": not args.sample_gain,
             "wall_seconds": time.perf_counter() - start,
             "workers": args.workers,
         }

@@ -129,6 +129,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             "converged": run.converged,
             "map_log_prob": float(np.max(run.log_prob)),
             "start_modes": int(run.start_modes),
+            "seconds": dict(run.seconds),
             "tau_history": [[int(i), t] for i, t in run.tau_history],
         },
         flags=list(run.flags),

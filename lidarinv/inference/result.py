@@ -117,6 +117,11 @@ class InversionResult:
             f"acceptance {np.mean(d['acceptance']):.2f}, min ESS {np.min(d['ess']):.0f}, "
             f"{'converged' if self.converged else 'NOT CONVERGED'}"
         )
+        if "seconds" in d:
+            lines.append(
+                f"time: start (MAP search) {d['seconds']['start']:.1f} s, "
+                f"sampling {d['seconds']['sampling']:.1f} s"
+            )
         lines += [f"warning: {flag}" for flag in self.flags]
         return "\n".join(lines)
 

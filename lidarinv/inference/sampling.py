@@ -1,5 +1,6 @@
 """MAP initialisation and the emcee run with an autocorrelation-time stopping rule."""
 
+import time
 from dataclasses import dataclass, field
 
 import emcee
@@ -132,6 +133,7 @@ class SamplerRun:
     thin: int
     flags: list = field(default_factory=list)
     start_modes: int = 1  # basins the walkers started in (0 for a resumed chain)
+    seconds: dict = field(default_factory=dict)  # "start" (MAP search, ball), "sampling"
 
 
 def _batched_objective(log_prob, step=1e-5):
@@ -349,6 +351,7 @@ def run_sampler(
         _check_coordinates(backend, coordinates, resume)
     log_prob = lambda u: log_posterior(u)[:, 0]  # noqa: E731
     flags, modes = [], []
+    clock = time.perf_counter()
     if resume:
         state = backend.get_last_sample()
     else:
@@ -362,6 +365,8 @@ def run_sampler(
             centre = np.asarray(start, float)
             modes = [Mode(centre, 0.0, laplace_covariance(log_prob, centre))]
         state = _initial_ball(log_prob, modes, s.ball, n_walkers, rng)
+    seconds = {"start": time.perf_counter() - clock}
+    clock = time.perf_counter()
     history, tau, converged = [], np.full(ndim, np.inf), False
     bar = tqdm(total=s.max_steps, disable=not progress, desc="sampling", unit="step")
     bar.update(sampler.iteration)
@@ -383,6 +388,7 @@ def run_sampler(
             break
         next_check = sampler.iteration + max(s.check_every, int(s.check_growth * sampler.iteration))
     bar.close()
+    seconds["sampling"] = time.perf_counter() - clock
     if not converged:
         flags.append(
             f"not converged: {sampler.iteration} steps < {s.tau_multiple:g} τ "
@@ -406,4 +412,5 @@ def run_sampler(
         thin=thin,
         flags=flags,
         start_modes=len(modes),
+        seconds=seconds,
     )
