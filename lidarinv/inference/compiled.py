@@ -14,6 +14,7 @@ from numba import njit
 from scipy.special import log_ndtr
 
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
+_SQRT2 = math.sqrt(2.0)
 
 
 @njit(cache=True)
@@ -104,11 +105,80 @@ def _log_prior_form(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
 
 
 @njit(cache=True)
+def _prior_log_pdf(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
+    n, k = x.shape
+    out = np.empty((n, k))
+    for r in range(n):
+        for c in range(k):
+            out[r, c] = _log_prior_form(
+                x[r, c], lower[c], upper[c], log_scale[c], w_mean[c], w_sd[c], log_norm[c]
+            )
+    return out
+
+
+@njit(cache=True)
+def _prior_from_unbounded(u, w_lower, span, log_scale, lower, upper):
+    n, k = u.shape
+    x = np.empty((n, k))
+    log_jac = np.empty((n, k))
+    for r in range(n):
+        for c in range(k):
+            t = u[r, c]
+            # σ(t) and log[σ(t)·σ(−t)], without overflow either side
+            if t >= 0.0:
+                e = math.exp(-t)
+                sigma, log_both = 1.0 / (1.0 + e), -t - 2.0 * math.log1p(e)
+            else:
+                e = math.exp(t)
+                sigma, log_both = e / (1.0 + e), t - 2.0 * math.log1p(e)
+            w = w_lower[c] + span[c] * sigma
+            jac = math.log(span[c]) + log_both
+            value = w
+            if log_scale[c]:
+                value = math.exp(w)
+                jac += w
+            x[r, c] = min(max(value, lower[c]), upper[c])  # exp(log upper) may round above
+            log_jac[r, c] = jac
+    return x, log_jac
+
+
+def prior_log_pdf(x, lower, upper, log_scale, w_mean, w_sd, log_norm) -> np.ndarray:
+    """Log densities (n, k) of the columns of x under priors in the common form of
+    :class:`.priors.PriorForm` (one entry per column); −inf outside each support and for
+    NaN."""
+    return _prior_log_pdf(
+        np.ascontiguousarray(x, dtype=np.float64), lower, upper, log_scale, w_mean, w_sd, log_norm
+    )
+
+
+def prior_from_unbounded(u, w_lower, span, log_scale, lower, upper):
+    """Values (n, k) and log|dx/du| (n, k) of unbounded coordinates u (n, k): w = w_lower +
+    span·σ(u), x = w or exp(w) for log-scale columns, within [lower, upper]."""
+    return _prior_from_unbounded(
+        np.ascontiguousarray(u, dtype=np.float64), w_lower, span, log_scale, lower, upper
+    )
+
+
+@njit(cache=True)
+def _log_gaussian_mass(lo, hi):
+    """log(Φ(hi) − Φ(lo)), lo < hi, from complementary error functions (no cancellation in
+    either tail); −inf where the mass underflows, beyond about 37 sd."""
+    if lo > 0.0:  # mirror, so that lo ≤ 0
+        lo, hi = -hi, -lo
+    if hi <= 0.0:
+        mass = 0.5 * (math.erfc(-hi / _SQRT2) - math.erfc(-lo / _SQRT2))
+    else:
+        mass = 1.0 - 0.5 * math.erfc(hi / _SQRT2) - 0.5 * math.erfc(-lo / _SQRT2)
+    return math.log(mass) if mass > 0.0 else -math.inf
+
+
+@njit(cache=True)
 def _gain_log_likelihood(fit, unit, log_weights, span, form):
     lower, upper, log_scale, w_mean, w_sd, log_norm = form
     n, k = fit.shape[0], unit.size
     out = np.empty(n)
     moments = np.zeros((n, 2))
+    log_mass = np.zeros(n)  # log P_q(bounds)
     terms = np.empty(k)
     weights = np.empty(k)
     for r in range(n):
@@ -124,6 +194,8 @@ def _gain_log_likelihood(fit, unit, log_weights, span, form):
             gap = (best - w_mean) ** 2 / (s * s + w_sd * w_sd) if prior_precision > 0 else 0.0
             out[r] += -log_norm - 0.5 * gap - 0.5 * math.log(both) + _HALF_LOG_2PI
             moments[r, 0], moments[r, 1] = mean, 1.0 / math.sqrt(both)
+            root = math.sqrt(both)
+            log_mass[r] = _log_gaussian_mass((lower - mean) * root, (upper - mean) * root)
             continue
         # log-scale prior, smooth on the scale of s: E[π] under N(â, s²), a quadrature rule
         z_lo, z_hi = (lower - best) / s, (upper - best) / s
@@ -146,7 +218,8 @@ def _gain_log_likelihood(fit, unit, log_weights, span, form):
             sum_t += math.exp(terms[i] - top_t)
         out[r] += math.log(s) + _HALF_LOG_2PI + top_t + math.log(sum_t) - top_w - math.log(sum_w)
         moments[r, 0], moments[r, 1] = best, s
-    return out, moments
+        log_mass[r] = _log_gaussian_mass(z_lo, z_hi)
+    return out, moments, log_mass
 
 
 def gain_log_likelihood(fit, unit, log_weights, span, form):
@@ -158,24 +231,25 @@ def gain_log_likelihood(fit, unit, log_weights, span, form):
     constant, integrated exactly over the prior's bounds. For a log-scale prior, q is
     N(â, s²) and the integral s√(2π)·P_q(bounds)·E_q[π], the expectation a rule with nodes
     ``unit`` (fractions of q's bulk within the bounds, ±``span`` sd about its mode) and
-    log weights ``log_weights``. P_q through :func:`scipy.special.log_ndtr`, accurate
-    however far the bounds lie in a tail. ``form`` is the prior's (lower, upper,
-    log_scale, w_mean, w_sd, log_norm) of :class:`.priors.PriorForm`. Rows whose model
-    carries no signal (Σ W²/v = 0) get q = (0, 0) and no integral (the prior's is one).
+    log weights ``log_weights``. P_q from erfc, and through :func:`scipy.special.log_ndtr`
+    where the bounds lie so far in a tail that erfc underflows. ``form`` is the prior's
+    (lower, upper, log_scale, w_mean, w_sd, log_norm) of :class:`.priors.PriorForm`. Rows
+    whose model carries no signal (Σ W²/v = 0) get q = (0, 0) and no integral (the
+    prior's is one).
     """
     form = np.asarray(form, dtype=np.float64)
-    partial, moments = _gain_log_likelihood(
+    partial, moments, log_mass = _gain_log_likelihood(
         np.ascontiguousarray(fit, dtype=np.float64),
         np.ascontiguousarray(unit, dtype=np.float64),
         np.ascontiguousarray(log_weights, dtype=np.float64),
         float(span),
         form,
     )
-    informative = moments[:, 1] > 0
-    if informative.any():
-        mean, sd = moments[informative, 0], moments[informative, 1]
-        partial[informative] += log_gaussian_mass((form[0] - mean) / sd, (form[1] - mean) / sd)
-    return partial, moments
+    far = np.isneginf(log_mass)
+    if far.any():
+        mean, sd = moments[far, 0], moments[far, 1]
+        log_mass[far] = log_gaussian_mass((form[0] - mean) / sd, (form[1] - mean) / sd)
+    return partial + log_mass, moments
 
 
 def log_gaussian_mass(lower, upper) -> np.ndarray:

@@ -345,7 +345,13 @@ def run_sampler(
             f"the backend holds a chain of shape {backend.shape}, not {(n_walkers, ndim)}"
         )
     sampler = emcee.EnsembleSampler(
-        n_walkers, ndim, log_posterior, moves=moves, backend=backend, vectorize=True
+        n_walkers,
+        ndim,
+        log_posterior,
+        moves=moves,
+        backend=backend,
+        vectorize=True,
+        blobs_dtype=np.dtype(float),  # the blobs are floats: emcee need not detect it per call
     )
     if coordinates is not None and isinstance(backend, emcee.backends.HDFBackend):
         _check_coordinates(backend, coordinates, resume)
