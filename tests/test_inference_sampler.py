@@ -1,5 +1,6 @@
 """The sampler harness on a posterior known in closed form (linear-Gaussian toy)."""
 
+import emcee
 import numpy as np
 import pytest
 
@@ -55,6 +56,17 @@ def test_toy_posterior_matches_closed_form(toy_run):
     mcse = np.sqrt(np.diag(toy.cov) / n_eff)
     np.testing.assert_array_less(np.abs(x.mean(axis=0) - toy.mean), 5 * mcse)
     np.testing.assert_allclose(np.cov(x.T), toy.cov, rtol=0.25, atol=0.05 * np.max(toy.cov))
+
+
+def test_tau_from_the_thinned_chain_is_the_full_chains():
+    rng = np.random.default_rng(8)
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
+    toy = LinearGaussianToy(space, rng)
+    coarse = SamplerSettings(n_walkers=16, max_steps=3000, check_every=250, tau_resolution=3)
+    run = run_sampler(toy, space, rng, coarse)  # τ ≈ 12: each check thins by about 4
+    full = emcee.autocorr.integrated_time(run.chain[run.burn :], tol=0, quiet=True)
+    assert np.min(run.tau) / 3 >= 3
+    np.testing.assert_allclose(run.tau, full, rtol=0.1)
 
 
 def test_blobs_follow_the_chain(toy_run):

