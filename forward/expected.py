@@ -549,7 +549,8 @@ class ExpectedWaveformModel:
                 continue
             stems = v[:, _I["density"]] * weight
             if compiled:
-                w = np.broadcast_to(w, (v.shape[0], w.shape[1]))
+                if w.shape[0] != v.shape[0]:  # one mix for every row (cohort 2)
+                    w = np.repeat(w, v.shape[0], axis=0)
                 expected_numba.add_cohort_depth(
                     pdf, lo, step, stems, r0, r1, c, self._s_lo, self._s_hi, extinction,
                     self._node_favd, w, z, depth,

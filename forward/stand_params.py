@@ -64,28 +64,33 @@ def _truncnorm(mean, sd, truncation):
 
 
 def _raw_moments(standard, orders, loc, scale):
-    """E[h^k] for h = loc + scale·x, from the standard moments ``standard`` (..., K + 1)
-    = E[x^j], j ≤ K = max(orders): Σ_j C(k, j)·loc^(k−j)·scale^j·E[x^j], by Horner's rule
-    in loc. The orders k form the last axis of the result."""
+    """E[h^k] for h = loc + scale·x, from the standard moments ``standard[j]`` = E[x^j]
+    (a list, j ≤ max(orders)): Σ_j C(k, j)·loc^(k−j)·scale^j·E[x^j], by Horner's rule in
+    loc. The orders k (ints) form the last axis of the result."""
     loc, scale = np.asarray(loc, float), np.asarray(scale, float)
-    scaled = standard * scale[..., None] ** np.arange(standard.shape[-1])  # E[(scale·x)^j]
+    scaled, power = [standard[0]], 1.0
+    for moment in standard[1:]:
+        power = power * scale
+        scaled.append(moment * power)  # E[(scale·x)^j]
     out = []
-    for k in np.atleast_1d(orders):
-        acc = scaled[..., 0]
-        for j in range(1, int(k) + 1):
-            acc = acc * loc + math.comb(int(k), j) * scaled[..., j]
+    for k in orders:
+        acc = scaled[0]
+        for j in range(1, k + 1):
+            acc = acc * loc + math.comb(k, j) * scaled[j]
         out.append(acc)
     return np.stack(out, axis=-1)
 
 
 # Closed forms through scipy.special for the hot path of the batched model: scipy.stats
 # method calls cost 0.1–0.5 ms each in argument handling, more than the model itself.
-# ``which = "moments"`` takes the orders k as ``x`` and returns E[h^k] on a last axis.
+# ``which = "moments"`` takes the orders k (a tuple of ints) as ``x`` and returns E[h^k]
+# on a last axis.
 def _weibull_fast(which, x, args, loc, scale):
     (k,) = args
     if which == "moments":
-        j = np.arange(int(np.max(x)) + 1)
-        return _raw_moments(gamma(1.0 + j / np.asarray(k, float)[..., None]), x, loc, scale)
+        shape = np.asarray(k, float)
+        standard = [gamma(1.0 + j / shape) for j in range(max(x) + 1)]
+        return _raw_moments(standard, x, loc, scale)
     if which == "pdf":
         y = np.maximum(x - loc, 0.0) / scale
         log_y = np.log(np.maximum(y, 1e-300))
@@ -106,10 +111,8 @@ def _weibull_fast(which, x, args, loc, scale):
 def _lognormal_fast(which, x, args, loc, scale):
     (sigma,) = args
     if which == "moments":
-        j = np.arange(int(np.max(x)) + 1)
-        return _raw_moments(
-            np.exp(0.5 * j * j * np.asarray(sigma, float)[..., None] ** 2), x, loc, scale
-        )
+        s2 = np.asarray(sigma, float) ** 2
+        return _raw_moments([np.exp(0.5 * j * j * s2) for j in range(max(x) + 1)], x, loc, scale)
     if which == "pdf":
         y = np.maximum(x - loc, 1e-300) / scale
         dens = np.exp(-0.5 * (np.log(y) / sigma) ** 2) / (y * scale * sigma * np.sqrt(2 * np.pi))
@@ -130,7 +133,7 @@ def _truncnorm_fast(which, x, args, loc, scale):
     a, b = args
     low, high = ndtr(a), ndtr(b)
     if which == "moments":
-        standard = _truncated_standard_moments(a, b, high - low, int(np.max(x)))
+        standard = _truncated_standard_moments(a, b, high - low, max(x))
         return _raw_moments(standard, x, loc, scale)
     if which == "pdf":
         y = (x - loc) / scale
@@ -149,16 +152,16 @@ def _truncnorm_fast(which, x, args, loc, scale):
 
 
 def _truncated_standard_moments(a, b, mass, top):
-    """E[x^j], j ≤ ``top``, of the standard normal truncated to [a, b] (mass Φ(b) − Φ(a)),
-    on a last axis: m_j = (j − 1)·m_{j−2} + (a^{j−1}φ(a) − b^{j−1}φ(b))/mass."""
+    """[E[x^j] for j ≤ ``top``] of the standard normal truncated to [a, b] (mass
+    Φ(b) − Φ(a)): m_j = (j − 1)·m_{j−2} + (a^{j−1}φ(a) − b^{j−1}φ(b))/mass."""
     a, b = np.asarray(a, float), np.asarray(b, float)
-    phi_a, phi_b = np.exp(-0.5 * a * a) / _SQRT_2PI, np.exp(-0.5 * b * b) / _SQRT_2PI
-    moments = [np.ones_like(a), (phi_a - phi_b) / mass]
-    pow_a, pow_b = np.ones_like(a), np.ones_like(b)
+    edge_a = np.exp(-0.5 * a * a) / (_SQRT_2PI * mass)  # φ(a)/mass
+    edge_b = np.exp(-0.5 * b * b) / (_SQRT_2PI * mass)
+    moments = [np.ones_like(a), edge_a - edge_b]
     for j in range(2, top + 1):
-        pow_a, pow_b = pow_a * a, pow_b * b
-        moments.append((j - 1) * moments[j - 2] + (pow_a * phi_a - pow_b * phi_b) / mass)
-    return np.stack(moments[: top + 1], axis=-1)
+        edge_a, edge_b = edge_a * a, edge_b * b
+        moments.append((j - 1) * moments[j - 2] + edge_a - edge_b)
+    return moments[: top + 1]
 
 
 def _always_valid(mean, sd, truncation):
@@ -219,6 +222,7 @@ class HeightFamily:
 
     def raw_moments(self, orders, mean, sd, truncation=2.0):
         """E[h^k] (m^k) for each order k in ``orders``, on a last axis, in closed form."""
+        orders = tuple(int(k) for k in np.ravel(orders))
         return self.fast("moments", orders, *self.arguments(mean, sd, truncation))
 
     def mean_above(self, x, mean, sd, truncation=2.0):
