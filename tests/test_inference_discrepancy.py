@@ -18,7 +18,12 @@ from lidarinv.inference.discrepancy import (
     model_variance,
 )
 from lidarinv.inference.stand_mapping import TOP_SDS, StandMapping, default_template
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot, tallest_within
+from lidarinv.inference.synthetic import (
+    SYNTHETIC_SHOTS,
+    synthetic_shot,
+    tallest_within,
+    true_values,
+)
 
 STAND = SYNTHETIC_SHOTS["gedi-mixed"].params
 
@@ -128,3 +133,28 @@ def test_synthetic_shot_knows_its_footprint_top(rng):
     explicit = synthetic_shot(recipe, rng)
     assert 0 < explicit.truth["footprint_top_height"] <= explicit.truth["top_height"]
     assert np.isnan(synthetic_shot(recipe, rng, explicit=False).truth["footprint_top_height"])
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [{}, {"density": 80.0}, {"height_mean": 3.0, "height_sd": 2.5, "favd": 0.3}],
+    ids=["gedi-mixed", "sparse", "cut-at-the-ground"],
+)
+def test_stand_mapping_inverts_the_parameterisation_and_matches_forward_derived(changes):
+    """A stand's inversion parameters map back to its density, heights and FAVD, and the
+    mapping's closed-form derived quantities equal forward.derived's quadratures."""
+    params = SYNTHETIC_SHOTS["gedi-mixed"].params.with_values(**changes)
+    truth = true_values(params, 1.0, 0.0, 1.0)
+    v = {name: np.array([value]) for name, value in truth.items()}
+    v.update(crown_radius_slope=np.array([params.crown_radius_slope]), ground_elevation=np.zeros(1))
+    mapping = StandMapping(default_template())
+    vectors, found = mapping.model_vectors(v)
+    column = dict(zip(mapping.model_free, vectors[0]))
+    assert column["density"] == pytest.approx(params.density, rel=1e-6)
+    assert column["height_mean"] == pytest.approx(params.height_mean, rel=1e-9)
+    assert column["height_sd"] == pytest.approx(params.height_sd, rel=1e-9)
+    assert column["favd"] == pytest.approx(params.favd, rel=1e-6)
+    assert found["mean_height"][0] == pytest.approx(derived.mean_height(params), rel=1e-6)
+    assert found["dominant_height"][0] == pytest.approx(derived.dominant_height(params), rel=1e-3)
+    assert found["crown_volume"][0] == pytest.approx(derived.crown_volume_per_ha(params), rel=1e-6)
+    assert found["lai"][0] == pytest.approx(derived.leaf_area_index(params), rel=1e-9)

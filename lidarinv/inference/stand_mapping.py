@@ -203,12 +203,12 @@ class StandMapping:
 
     def _dominant_height(self, mean, sd, density):
         """Mean height of the DOMINANT_PER_HA tallest stems per hectare (all if fewer):
-        the family's closed-form partial mean above the cut over the share above it."""
+        the family's closed-form partial mean above the cut over the share above it, which
+        is the tail the cut was taken at."""
         tail = np.clip(DOMINANT_PER_HA / density, 1e-9, 1.0)
-        cut = self.family.isf(tail, mean, sd, self.truncation)
-        above = self.family.sf(cut, mean, sd, self.truncation)
-        partial = self.family.mean_above(cut, mean, sd, self.truncation)
-        return partial / np.maximum(above, 1e-300)
+        args = self.family.arguments(mean, sd, self.truncation)
+        cut = self.family.fast("isf", tail, *args)
+        return self.family.fast("mean_above", cut, *args) / tail
 
     def crown_volume_profile(self, v, z) -> np.ndarray:
         """Crown volume per unit ground area and height (m³/m²/m) at heights z (m), (n, nz)."""
