@@ -58,7 +58,7 @@ from functools import partial
 
 import numpy as np
 
-from . import expected_depth, expected_numba
+from . import expected_depth, expected_grid, expected_numba
 from .crowns import CROWN_SHAPES, SHAPE_NAMES
 from .expected_tables import (
     catmull_rom,
@@ -114,19 +114,6 @@ GRID_UNDERSHOOT = 1e-5
 
 #: Settings taken as converged (the reference of the benchmark and the convergence test).
 CONVERGED = ModelSettings(radial_nodes=48, height_nodes=1024, tail=1e-9, depth_nodes=None)
-
-
-def _clip_keeping_energy(canopy, rows):
-    """Zero the negative samples of ``rows`` (bool, n) and rescale the rest so that each
-    row keeps its sum: non-negative samples and exact energy (a change of the order of
-    the undershoot, far below the model error)."""
-    if rows.any():
-        part = canopy[rows]
-        positive = np.clip(part, 0.0, None)
-        total = positive.sum(axis=1)
-        scale = np.where(total > 0, part.sum(axis=1) / np.where(total > 0, total, 1.0), 0.0)
-        canopy[rows] = positive * np.clip(scale, 0.0, None)[:, None]
-    return canopy
 
 
 @dataclass(frozen=True)
@@ -348,27 +335,8 @@ class ExpectedWaveformModel:
             again = v[redo]
             cohorts = self._cohorts(again)
             canopy[redo], gap0[redo] = self._canopy_edges(again, cohorts, self._top(cohorts))
-            canopy = _clip_keeping_energy(canopy, redo)
+            canopy = expected_grid.clip_keeping_energy(canopy, redo)
         return canopy, gap0
-
-    def _add_understory(self, v, z0, lost, interp, layers_to_samples, local):
-        """The grid path's samples (n, bins) and E[P(0)] with a uniform understory.
-
-        P = P_trees·P_u differs from P_trees only below the understory top: there the
-        trees' E[P] is read at the fine-layer edges from the same grid interpolation, and
-        each layer's energy becomes Δ(P_trees·P_u) instead of ΔP_trees. P_u is exact at
-        the edges, so its kink at the layer top costs no accuracy.
-        """
-        layer = self.layer_height
-        hu = np.where(v[:, _I["understory_lai"]] > 0, v[:, _I["understory_height"]], 0.0)
-        edges = min(int(np.max(np.ceil((hu - z0) / layer))) + 2, interp.shape[1])
-        z = np.maximum(z0[:, None] + layer * np.arange(edges), 0.0)
-        trees = 1.0 + lost @ interp[:, :edges]
-        intercepted = -np.expm1(-self._understory_depth(v, z))  # 1 − P_u
-        # Δ(P_trees·P_u) − ΔP_trees = −Δ(P_trees·(1 − P_u)); z starts at 0 in every row
-        change = -np.diff(trees * intercepted, axis=1)
-        local = local + change @ layers_to_samples[: edges - 1]
-        return local, (1.0 + lost[:, 0]) * (1.0 - intercepted[:, 0])
 
     def _canopy_edges(self, v, cohorts, top):
         """E[P] at every fine-layer edge, then the layer kernel as a matrix product."""
@@ -394,7 +362,7 @@ class ExpectedWaveformModel:
         Returns the samples (n, bins), E[P(0)] (n,) and the rows whose samples undershoot
         zero by more than :data:`GRID_UNDERSHOOT` of their canopy energy (n,); the others
         are clipped at zero, keeping their energy."""
-        n, dz = v.shape[0], self.instrument.bin_height
+        dz = self.instrument.bin_height
         g = v[:, _I["ground_elevation"]]
         step = self._per_cell * self.layer_height
         shift = np.floor((g - self._origin) / dz)
@@ -409,34 +377,16 @@ class ExpectedWaveformModel:
         z = z0[:, None] + step * np.arange(nodes)
         np.maximum(z, 0.0, out=z)
         depth = self._tree_depth(v, z, cohorts)
-        if self.backend == "numba":
-            lai, top_u = v[:, _I["understory_lai"]], v[:, _I["understory_height"]]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                scale_u = np.where(understory, self._kappa * lai / top_u, 0.0)
-            operator = self._grid_operator(nodes)
-            return expected_numba.assemble_grid(
-                depth, operator, shift, scale_u, top_u, z0, self.layer_height, self.heights.size,
-                GRID_UNDERSHOOT,
-            )  # fmt: skip
-        # E[P] − 1 (zero above the trees): a bare row gives exactly zero
-        lost = np.expm1(-depth)
-        matrix, first, interp, layers_to_samples = self._grid_operator(nodes)
-        local = lost @ matrix
-        gap0 = 1.0 + lost[:, 0]
-        if understory.any():
-            local, gap0 = self._add_understory(v, z0, lost, interp, layers_to_samples, local)
-        # row r's sample k lands in bin shift_r + first + k; bins outside the window go to
-        # two spare columns (flat indices: much faster than a 2-D scatter)
-        width = self.heights.size + 2
-        cols = (shift.astype(np.intp) + first)[:, None] + np.arange(matrix.shape[1])
-        np.clip(cols, -1, width - 2, out=cols)
-        cols += (1 + width * np.arange(n))[:, None]
-        out = np.zeros((n, width))
-        out.ravel()[cols.ravel()] = local.ravel()
-        canopy = out[:, 1:-1]
-        lowest = canopy.min(axis=1)
-        redo = lowest < -GRID_UNDERSHOOT * np.maximum(1.0 - gap0, np.finfo(float).tiny)
-        return _clip_keeping_energy(canopy, (lowest < 0) & ~redo), gap0, redo
+        lai, top_u = v[:, _I["understory_lai"]], v[:, _I["understory_height"]]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale_u = np.where(understory, self._kappa * lai / top_u, 0.0)
+        assemble = (
+            expected_numba.assemble_grid if self.backend == "numba" else expected_grid.assemble_grid
+        )
+        return assemble(
+            depth, self._grid_operator(nodes), shift, scale_u, top_u, z0, self.layer_height,
+            self.heights.size, GRID_UNDERSHOOT,
+        )  # fmt: skip
 
     def _grid_operator(self, nodes):
         """:func:`forward.expected_tables.grid_operator` for ``nodes``, cached."""
