@@ -47,7 +47,8 @@ Waveform. With ``depth_nodes`` set, E[P] is evaluated on a grid of whole fine la
 at or below each row's ground g; Catmull–Rom interpolation to the layer edges, the layer
 returns ρv·ΔE[P] and the layer kernel of the explicit engine
 (:func:`forward.pulse.layer_kernel`) are then one constant matrix, and each row is
-shifted by whole bins. With ``depth_nodes=None``, or an understory, E[P] is evaluated at
+shifted by whole bins (:mod:`forward.expected_grid`, compiled in
+:mod:`forward.expected_numba`). With ``depth_nodes=None``, or an understory, E[P] is evaluated at
 every fine-layer edge (z = edge − g) and convolved as one matrix product. The uniform
 understory multiplies E[P] by its own transmission; the ground pulse is ρg·E[P(0)]·Δz·
 pulse(z_j − g), for a Gaussian or a measured pulse alike. Slopes are not modelled here.
