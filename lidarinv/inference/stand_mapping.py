@@ -89,12 +89,12 @@ class StandMapping:
         self.model_free = MODEL_FIELDS + tuple(f"mix_{s}" for s in shape_pair)
         assert all(f in MIX_FIELDS for f in self.model_free[len(MODEL_FIELDS) :])
 
-    def _quadrature(self, mean, sd, lo=None):
-        """Heights (n, q) and weights (n, q) summing to the probability mass on [lo, top],
-        on the profile's rule."""
+    def _quadrature(self, mean, sd):
+        """Heights (n, q) and weights (n, q) of the profile's rule over the bulk of each
+        row's height distribution (all but 1e-9 in each tail)."""
         x, w = self._profile_rule
         t = self.truncation
-        low = self.family.ppf(1e-9, mean, sd, t) if lo is None else lo
+        low = self.family.ppf(1e-9, mean, sd, t)
         high = self.family.isf(1e-9, mean, sd, t)
         low = np.minimum(low, high)
         h = low[:, None] + (high - low)[:, None] * x
