@@ -8,8 +8,9 @@ walkers, max τ, converged, and the cost of one log-posterior row. Target: ≤ 1
 footprint with ~10 free parameters.
 
     python studies/inversion_speed.py [--n 3] [--max-steps 20000] [--config default 10-free]
+                                      [--sample-gain] [--tag _NAME]
 
-Writes studies/output/inversion_speed/summary.json.
+Writes studies/output/inversion_speed[_TAG]/summary.json.
 """
 
 import os
@@ -96,10 +97,16 @@ def main():
     parser.add_argument("--max-steps", type=int, default=20000)
     parser.add_argument("--seed", type=int, default=5)
     parser.add_argument("--config", nargs="+", default=list(CONFIGURATIONS), choices=CONFIGURATIONS)
+    parser.add_argument(
+        "--sample-gain", action="store_true", help="sample the gain instead of integrating it out"
+    )
+    parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     summary = {"target_seconds": TARGET_SECONDS, "load_average": os.getloadavg()}
     for name in args.config:
-        settings = replace(InversionSettings(), **CONFIGURATIONS[name])
+        settings = replace(
+            InversionSettings(marginalise_gain=not args.sample_gain), **CONFIGURATIONS[name]
+        )
         settings = replace(settings, sampler=replace(settings.sampler, max_steps=args.max_steps))
         rows = _run(settings, args.n, args.seed, name)
         summary[name] = {
@@ -107,7 +114,8 @@ def main():
             "converged_fraction": float(np.mean([r["converged"] for r in rows])),
             "shots": rows,
         }
-    folder = Path(__file__).parent / "output" / "inversion_speed"
+    summary["gain_marginalised"] = not args.sample_gain
+    folder = Path(__file__).parent / "output" / ("inversion_speed" + args.tag)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "summary.json").write_text(json.dumps(summary, indent=1))
     brief = {
