@@ -192,9 +192,9 @@ def _gain_log_likelihood(fit, unit, log_weights, span, form):
             both = precision + prior_precision
             mean = (best * precision + w_mean * prior_precision) / both
             gap = (best - w_mean) ** 2 / (s * s + w_sd * w_sd) if prior_precision > 0 else 0.0
-            out[r] += -log_norm - 0.5 * gap - 0.5 * math.log(both) + _HALF_LOG_2PI
-            moments[r, 0], moments[r, 1] = mean, 1.0 / math.sqrt(both)
             root = math.sqrt(both)
+            out[r] += -log_norm - 0.5 * gap - math.log(root) + _HALF_LOG_2PI
+            moments[r, 0], moments[r, 1] = mean, 1.0 / root
             log_mass[r] = _log_gaussian_mass((lower - mean) * root, (upper - mean) * root)
             continue
         # log-scale prior, smooth on the scale of s: E[π] under N(â, s²), a quadrature rule
@@ -237,7 +237,7 @@ def gain_log_likelihood(fit, unit, log_weights, span, form):
     whose model carries no signal (Σ W²/v = 0) get q = (0, 0) and no integral (the
     prior's is one).
     """
-    form = np.asarray(form, dtype=np.float64)
+    form = np.asarray(form, dtype=np.float64)  # no copy for a float64 array
     partial, moments, log_mass = _gain_log_likelihood(
         np.ascontiguousarray(fit, dtype=np.float64),
         np.ascontiguousarray(unit, dtype=np.float64),

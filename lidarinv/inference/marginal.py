@@ -64,13 +64,9 @@ class GainMarginal:
         self.prior = prior
         form = prior.form()
         self.lower, self.upper = float(form.lower), float(form.upper)
-        self._form = (
-            form.lower,
-            form.upper,
-            float(form.log_scale),
-            form.w_mean,
-            form.w_sd,
-            form.log_norm,
+        self._form = np.array(
+            [form.lower, form.upper, form.log_scale, form.w_mean, form.w_sd, form.log_norm],
+            float,
         )
         x, w = np.polynomial.legendre.leggauss(nodes)
         self._nodes, self._log_weights = 0.5 * (x + 1.0), np.log(0.5 * w)

@@ -112,10 +112,12 @@ class LogPosterior:
         self._fixed_variance = (
             np.zeros(data.axis.size) if fixed_discrepancy is None else fixed_discrepancy
         )
+        # η of a discrepancy proportional to each row's model: none when the observation
+        # fixes the discrepancy
+        self._discrepancy_scale = self.discrepancy if fixed_discrepancy is None else 0.0
         self.gain_marginal = None
         if "gain" in space.marginalised:
-            scale = self.discrepancy if fixed_discrepancy is None else 0.0
-            obstacle = gain_marginal_obstacle(data, self.shot_factor, scale)
+            obstacle = gain_marginal_obstacle(data, self.shot_factor, self._discrepancy_scale)
             if obstacle is not None:
                 raise ValueError(f"the gain cannot be marginalised: {obstacle}")
             self.gain_marginal = GainMarginal(space.by_name["gain"].prior)
@@ -161,7 +163,7 @@ class LogPosterior:
                     values["baseline"],
                     values["noise_sigma"],
                     self.shot_factor,
-                    self.discrepancy if self.fixed_discrepancy is None else 0.0,
+                    self._discrepancy_scale,
                     self.fixed_discrepancy,
                 )
             else:

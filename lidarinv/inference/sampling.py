@@ -70,9 +70,9 @@ class SamplerSettings:
         window of 5 started 43 % of the shots in several basins and left coverage and
         errors unchanged within noise (README, "Sampling").
     moves : tuple of (str, float)
-        Move mixture: names from :data:`MOVES` and their weights. τ alone does not rank
-        mixtures: DE with shorter jumps halved τ on hard shots, but only by staying in
-        part of the posterior (README, "Sampling").
+        Move mixture: names from :data:`MOVES` and their weights. On two 10-free GEDI
+        shots (12 000 steps) the largest τ was 128.6 and 90.0 with the default, 128.3 and
+        98.3 with DE/snooker 0.9/0.1, and 145 and 112 with DE alone.
     """
 
     n_walkers: int = 32
