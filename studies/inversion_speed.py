@@ -8,7 +8,7 @@ walkers, max τ, converged, and the cost of one log-posterior row. Target: ≤ 1
 footprint with ~10 free parameters.
 
     python studies/inversion_speed.py [--n 3] [--max-steps 20000] [--config default 10-free]
-                                      [--sample-gain] [--tag _NAME]
+                                      [--sample-gain] [--unbounded logit|probit] [--tag _NAME]
 
 Writes studies/output/inversion_speed[_TAG]/summary.json.
 """
@@ -27,6 +27,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from lidarinv.inference import InversionSettings, build_problem, invert_shot  # noqa: E402
+from lidarinv.inference.priors import DEFAULT_UNBOUNDED, UNBOUNDED_MAPS  # noqa: E402
 from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
 
 TARGET_SECONDS = 10.0
@@ -100,12 +101,16 @@ def main():
     parser.add_argument(
         "--sample-gain", action="store_true", help="sample the gain instead of integrating it out"
     )
+    parser.add_argument(
+        "--unbounded", default=DEFAULT_UNBOUNDED, choices=UNBOUNDED_MAPS, help="sampling map"
+    )
     parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     summary = {"target_seconds": TARGET_SECONDS, "load_average": os.getloadavg()}
     for name in args.config:
         settings = replace(
-            InversionSettings(marginalise_gain=not args.sample_gain), **CONFIGURATIONS[name]
+            InversionSettings(marginalise_gain=not args.sample_gain, unbounded=args.unbounded),
+            **CONFIGURATIONS[name],
         )
         settings = replace(settings, sampler=replace(settings.sampler, max_steps=args.max_steps))
         rows = _run(settings, args.n, args.seed, name)
@@ -115,6 +120,7 @@ def main():
             "shots": rows,
         }
     summary["gain_marginalised"] = not args.sample_gain
+    summary["unbounded"] = args.unbounded
     folder = Path(__file__).parent / "output" / ("inversion_speed" + args.tag)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "summary.json").write_text(json.dumps(summary, indent=1))

@@ -315,6 +315,8 @@ def main():
         for row in pool.map(one_shot, tasks):
             rows.append(row)
             print(f"shot {row['shot']}: {row.get('error', 'ok')}", flush=True)
+            # kept as they come, so an interrupted run keeps its finished shots
+            (folder / "shots.json").write_text(json.dumps(rows, indent=1))
     summary = summarise(rows)
     summary.update(
         {

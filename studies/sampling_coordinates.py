@@ -2,7 +2,9 @@
 
 The same GEDI-like synthetic shots (explicit random stands) are sampled for a fixed number
 of steps in each set of ridge-straightening coordinates of
-:mod:`lidarinv.inference.coordinates` (``none``, ``cover-pai``, ``cover-pai+crown-base``).
+:mod:`lidarinv.inference.coordinates` (``none``, ``cover-pai``, ``cover-pai+crown-base``),
+with the bounded priors mapped to the real line by the default logistic map, and in
+``cover-pai/probit`` with the normal CDF instead.
 The posterior is the same in all of them; what changes is how fast the ensemble crosses
 it. τ is estimated per physical parameter and per derived quantity (mean height, crown
 volume, LAI) after the chain is mapped back to physical units, so that the numbers
@@ -10,9 +12,10 @@ compare across coordinates. Settings as in the speed study's ``10-free`` configu
 (one core, BLAS threads pinned to 1). The wall time a run to 50 τ would take is
 estimated from the largest τ and the measured cost per step.
 
-    python studies/sampling_coordinates.py [--n 6] [--steps 8000]
+    python studies/sampling_coordinates.py [--n 6] [--steps 8000] [--coordinates LABEL ...]
+                                           [--tag _NAME]
 
-Writes studies/output/sampling_coordinates/summary.json and tau.png.
+Writes studies/output/sampling_coordinates[_TAG]/summary.json and tau.png.
 """
 
 import os
@@ -39,11 +42,13 @@ from lidarinv.inference.posterior import BLOB_NAMES  # noqa: E402
 from lidarinv.inference.sampling import run_sampler  # noqa: E402
 from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
 
-#: Coordinate sets compared, by label.
+#: Coordinate sets compared, by label: changes to InversionSettings (ridge coordinates and
+#: the map of bounded priors to the real line).
 COORDINATES = {
-    "none": (),
-    "cover-pai": ("cover-pai",),
-    "cover-pai+crown-base": ("cover-pai", "crown-base"),
+    "none": {"ridges": ()},
+    "cover-pai": {"ridges": ("cover-pai",)},
+    "cover-pai+crown-base": {"ridges": ("cover-pai", "crown-base")},
+    "cover-pai/probit": {"ridges": ("cover-pai",), "unbounded": "probit"},
 }
 
 #: Derived quantities whose τ is reported besides the parameters.
@@ -110,6 +115,7 @@ def main():
     parser.add_argument("--steps", type=int, default=8000)
     parser.add_argument("--seed", type=int, default=11)
     parser.add_argument("--coordinates", nargs="+", default=list(COORDINATES), choices=COORDINATES)
+    parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     base = replace(InversionSettings(), **TEN_FREE)
@@ -126,8 +132,7 @@ def main():
             skipped.append(str(error))
             continue
         for label in args.coordinates:
-            ridges = COORDINATES[label]
-            row[label] = run_shot(obs, replace(base, ridges=ridges), seed)
+            row[label] = run_shot(obs, replace(base, **COORDINATES[label]), seed)
             worst = max(row[label]["tau"], key=row[label]["tau"].get)
             print(obs.shot_id, label, f"max τ {row[label]['max_tau']:.0f} ({worst})", flush=True)
         shots.append(row)
@@ -145,7 +150,7 @@ def main():
         "shots": shots,
         "skipped": skipped,
     }
-    folder = Path(__file__).parent / "output" / "sampling_coordinates"
+    folder = Path(__file__).parent / "output" / ("sampling_coordinates" + args.tag)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "summary.json").write_text(json.dumps(summary, indent=1))
     plot(summary, folder / "tau.png")

@@ -4,11 +4,12 @@ import itertools
 
 import numpy as np
 import pytest
-from scipy import integrate
+from scipy import integrate, stats
 
 from lidarinv.inference import coordinates
 from lidarinv.inference.parameters import default_space, read_priors_file
 from lidarinv.inference.priors import (
+    UNBOUNDED_MAPS,
     LogUniform,
     PriorTable,
     TruncatedLogNormal,
@@ -36,18 +37,36 @@ def test_prior_density_is_normalised_and_zero_outside(prior):
     assert prior.log_pdf(np.nan) == -np.inf
 
 
+@pytest.mark.parametrize("unbounded", UNBOUNDED_MAPS)
 @pytest.mark.parametrize("prior", PRIORS, ids=lambda p: type(p).__name__)
-def test_transform_round_trip_and_jacobian(prior):
+def test_transform_round_trip_and_jacobian(prior, unbounded):
     u = np.linspace(-6, 6, 25)
-    x, log_jac = prior.from_unbounded(u)
+    x, log_jac = prior.from_unbounded(u, unbounded)
     assert np.all((x > prior.lower) & (x < prior.upper))
-    np.testing.assert_allclose(prior.to_unbounded(x), u, atol=1e-8)
+    np.testing.assert_allclose(prior.to_unbounded(x, unbounded), u, atol=1e-7)
     h = 1e-6
-    numeric = (prior.from_unbounded(u + h)[0] - prior.from_unbounded(u - h)[0]) / (2 * h)
-    np.testing.assert_allclose(np.exp(log_jac), numeric, rtol=1e-5)
+    step = prior.from_unbounded(u + h, unbounded)[0] - prior.from_unbounded(u - h, unbounded)[0]
+    # near a bound the difference of two x keeps few digits: ~1e-16·|x|/h absolute
+    width = prior.upper - prior.lower
+    np.testing.assert_allclose(np.exp(log_jac), step / (2 * h), rtol=1e-5, atol=1e-9 * width)
     # far out in u the parameter stays at the bound and the log-density stays finite
-    x_far, log_jac_far = prior.from_unbounded(np.array([-800.0, 800.0]))
+    x_far, log_jac_far = prior.from_unbounded(np.array([-800.0, 800.0]), unbounded)
     assert np.all(np.isfinite(log_jac_far)) and np.all(np.isfinite(x_far))
+
+
+def test_probit_map_makes_a_uniform_prior_standard_normal(rng):
+    """Under the probit map a uniform prior is N(0, 1) in u: the log-density in u,
+    log p(x(u)) + log|dx/du|, is the standard normal's."""
+    prior = Uniform(0.2, 3.0)
+    u = np.linspace(-7.0, 7.0, 29)
+    x, log_jac = prior.from_unbounded(u, "probit")
+    expected = -0.5 * u**2 - 0.5 * np.log(2 * np.pi)
+    np.testing.assert_allclose(prior.log_pdf(x) + log_jac, expected, rtol=1e-12)
+
+
+def test_unknown_unbounded_map_is_named():
+    with pytest.raises(ValueError, match="unknown unbounded map 'tanh'"):
+        PriorTable(PRIORS, "tanh")
 
 
 def test_mixed_prior_table_matches_each_prior_column_by_column(rng):
@@ -171,3 +190,21 @@ def test_parameter_space_samples_cover_and_pai_jointly_only_when_both_are_free(n
     u = per_parameter.to_unbounded(x)
     i = per_parameter.names.index("pai")
     np.testing.assert_allclose(u[:, i], per_parameter.by_name["pai"].prior.to_unbounded(x[:, i]))
+
+
+def test_parameter_space_under_the_probit_map(nuisance_priors):
+    """The same values round-trip through either map; under probit a free uniform
+    parameter's coordinate is its prior quantile's normal score; chains are labelled by
+    the map, so one sampled under the other map is not resumed into."""
+    logit_space = default_space(nuisance_priors)
+    probit_space = default_space(nuisance_priors, unbounded="probit")
+    x = logit_space.sample_prior(np.random.default_rng(4), 40)
+    u = probit_space.to_unbounded(x)
+    back, _ = probit_space.from_unbounded(u)
+    np.testing.assert_allclose(back, x, rtol=1e-10)
+    i = probit_space.names.index("understory_height")
+    prior = probit_space.by_name["understory_height"].prior
+    quantile = (x[:, i] - prior.lower) / (prior.upper - prior.lower)
+    np.testing.assert_allclose(u[:, i], stats.norm.ppf(quantile), rtol=1e-10)
+    assert probit_space.signature() != logit_space.signature()
+    assert "probit" in probit_space.with_changes({"cover": {"fixed": 0.5}}).signature()

@@ -116,23 +116,35 @@ def _prior_log_pdf(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
     return out
 
 
+#: Codes of the unbounded maps in the compiled kernel (:data:`.priors.UNBOUNDED_MAPS`).
+LOGIT, PROBIT = 0, 1
+
+_LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
 @njit(cache=True)
-def _prior_from_unbounded(u, w_lower, span, log_scale, lower, upper):
+def _unit_and_log_slope(t, kind):
+    """f(t) ∈ [0, 1] and log f′(t) of the logistic (``LOGIT``) or normal (``PROBIT``) CDF,
+    without overflow either side."""
+    if kind == PROBIT:
+        return 0.5 * math.erfc(-t / math.sqrt(2.0)), -0.5 * t * t - _LOG_SQRT_2PI
+    if t >= 0.0:
+        e = math.exp(-t)
+        return 1.0 / (1.0 + e), -t - 2.0 * math.log1p(e)
+    e = math.exp(t)
+    return e / (1.0 + e), t - 2.0 * math.log1p(e)
+
+
+@njit(cache=True)
+def _prior_from_unbounded(u, w_lower, span, log_scale, lower, upper, kind):
     n, k = u.shape
     x = np.empty((n, k))
     log_jac = np.empty((n, k))
     for r in range(n):
         for c in range(k):
-            t = u[r, c]
-            # σ(t) and log[σ(t)·σ(−t)], without overflow either side
-            if t >= 0.0:
-                e = math.exp(-t)
-                sigma, log_both = 1.0 / (1.0 + e), -t - 2.0 * math.log1p(e)
-            else:
-                e = math.exp(t)
-                sigma, log_both = e / (1.0 + e), t - 2.0 * math.log1p(e)
-            w = w_lower[c] + span[c] * sigma
-            jac = math.log(span[c]) + log_both
+            unit, log_slope = _unit_and_log_slope(u[r, c], kind)
+            w = w_lower[c] + span[c] * unit
+            jac = math.log(span[c]) + log_slope
             value = w
             if log_scale[c]:
                 value = math.exp(w)
@@ -151,11 +163,12 @@ def prior_log_pdf(x, lower, upper, log_scale, w_mean, w_sd, log_norm) -> np.ndar
     )
 
 
-def prior_from_unbounded(u, w_lower, span, log_scale, lower, upper):
+def prior_from_unbounded(u, w_lower, span, log_scale, lower, upper, kind=LOGIT):
     """Values (n, k) and log|dx/du| (n, k) of unbounded coordinates u (n, k): w = w_lower +
-    span·σ(u), x = w or exp(w) for log-scale columns, within [lower, upper]."""
+    span·f(u) with f the logistic (``kind=LOGIT``) or normal (``PROBIT``) CDF, x = w or
+    exp(w) for log-scale columns, within [lower, upper]."""
     return _prior_from_unbounded(
-        np.ascontiguousarray(u, dtype=np.float64), w_lower, span, log_scale, lower, upper
+        np.ascontiguousarray(u, dtype=np.float64), w_lower, span, log_scale, lower, upper, kind
     )
 
 

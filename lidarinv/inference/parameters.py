@@ -12,7 +12,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from . import coordinates
-from .priors import LogUniform, PriorTable, TruncatedLogNormal, Uniform, make_prior
+from .priors import (
+    DEFAULT_UNBOUNDED,
+    LogUniform,
+    PriorTable,
+    TruncatedLogNormal,
+    Uniform,
+    make_prior,
+)
 from .stand_mapping import TOP_SDS
 
 
@@ -110,11 +117,14 @@ class ParameterSpace:
         - ``crown-base``: the log crown-base height of the mean tree instead of
           ``crown_length_ratio``, when that is free and ``top_height`` and ``height_sd``
           are in the space (free or fixed).
+    unbounded : str
+        Map of each bounded prior to the real line, from :data:`.priors.UNBOUNDED_MAPS`.
     """
 
-    def __init__(self, parameters, ridges=coordinates.DEFAULT_RIDGES):
+    def __init__(self, parameters, ridges=coordinates.DEFAULT_RIDGES, unbounded=DEFAULT_UNBOUNDED):
         self.parameters = tuple(parameters)
         self.ridges = tuple(ridges)
+        self.unbounded = unbounded
         unknown = sorted(set(self.ridges) - set(coordinates.RIDGE_COORDINATES))
         if unknown:
             raise ValueError(
@@ -129,7 +139,7 @@ class ParameterSpace:
         self.names = tuple(p.name for p in self.free)
         if not self.free:
             raise ValueError("every parameter is fixed; nothing to infer")
-        self._priors = PriorTable([p.prior for p in self.free])
+        self._priors = PriorTable([p.prior for p in self.free], unbounded)
         both = "cover" in self.names and "pai" in self.names
         self._joint = (
             (self.names.index("cover"), self.names.index("pai"))
@@ -156,7 +166,7 @@ class ParameterSpace:
             joint += ", crown-base-v1"
         priors = ";".join(f"{p.name}:{p.prior.describe()}" for p in self.free)
         marginalised = "".join(f"; marginalised {name}" for name in self.marginalised)
-        return f"lidarinv logit transforms, {joint}; {priors}{marginalised}"
+        return f"lidarinv {self.unbounded} transforms, {joint}; {priors}{marginalised}"
 
     @property
     def marginalised(self) -> tuple:
@@ -197,8 +207,7 @@ class ParameterSpace:
 
     def to_unbounded(self, x):
         x = np.atleast_2d(np.asarray(x, float))
-        with np.errstate(divide="ignore"):
-            u = np.column_stack([p.prior.to_unbounded(x[:, i]) for i, p in enumerate(self.free)])
+        u = self._priors.to_unbounded(x)
         if self._joint is not None:
             c, a = self._joint
             u[:, c], u[:, a] = coordinates.from_cover_pai(x[:, c], x[:, a])
@@ -227,7 +236,7 @@ class ParameterSpace:
         for p in self.parameters:
             change = changes.get(p.name, {})
             out.append(replace(p, **change) if change else p)
-        return ParameterSpace(out, self.ridges)
+        return ParameterSpace(out, self.ridges, self.unbounded)
 
     def describe(self) -> list:
         return [
@@ -247,6 +256,7 @@ def default_space(
     nuisance_priors: dict,
     overrides: dict | None = None,
     ridges=coordinates.DEFAULT_RIDGES,
+    unbounded=DEFAULT_UNBOUNDED,
 ) -> ParameterSpace:
     """The default parameterisation with shot-specific nuisance priors.
 
@@ -258,6 +268,8 @@ def default_space(
         ``{name: {"prior": prior, "fixed": value or None}}``, e.g. from a priors file.
     ridges : tuple of str
         Sampling coordinates (see :class:`ParameterSpace`).
+    unbounded : str
+        Map of the bounded priors to the real line (see :class:`ParameterSpace`).
     """
     priors = {**DEFAULT_STRUCTURE_PRIORS, "rho_ratio": DEFAULT_RHO_RATIO_PRIOR, **nuisance_priors}
     params = []
@@ -265,7 +277,7 @@ def default_space(
         if name not in priors:
             raise ValueError(f"no prior given for {name}")
         params.append(Parameter(name, units, priors[name], DEFAULT_FIXED.get(name), description))
-    space = ParameterSpace(params, ridges)
+    space = ParameterSpace(params, ridges, unbounded)
     return space.with_changes(overrides) if overrides else space
 
 

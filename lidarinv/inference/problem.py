@@ -17,7 +17,7 @@ from .likelihood import WindowData
 from .marginal import gain_marginal_obstacle
 from .parameters import DEFAULT_STRUCTURE_PRIORS, default_space, read_priors_file
 from .posterior import LogPosterior
-from .priors import LogUniform, TruncatedNormal, Uniform
+from .priors import DEFAULT_UNBOUNDED, LogUniform, TruncatedNormal, Uniform
 from .sampling import SamplerSettings
 from .stand_mapping import StandMapping, default_template
 
@@ -75,6 +75,11 @@ class InversionSettings:
         the same, the chains mix faster): ``("cover-pai",)`` by default, ``("cover-pai",
         "crown-base")`` adds the crown-base coordinate, ``()`` samples each parameter on
         its own.
+    unbounded : str
+        Map of the bounded priors to the real line the sampler moves on
+        (:data:`.priors.UNBOUNDED_MAPS`): ``"logit"`` (logistic CDF, the default) or
+        ``"probit"`` (normal CDF, lighter tails where a parameter piles against a bound).
+        The posterior is the same; only the coordinates the ensemble moves in change.
     priors : dict
         Parameter overrides ``{name: {"prior": …, "fixed": …}}`` (see
         :func:`.parameters.read_priors_file`).
@@ -96,6 +101,7 @@ class InversionSettings:
     favd_range: tuple | None = None
     shape_pair: tuple = ("cone", "ellipsoid")
     ridges: tuple = DEFAULT_RIDGES
+    unbounded: str = DEFAULT_UNBOUNDED
     priors: dict = field(default_factory=dict)
     sampler: SamplerSettings = field(default_factory=SamplerSettings)
     model: ModelSettings = field(default_factory=ModelSettings)
@@ -227,7 +233,7 @@ def build_problem(obs: Observation, settings: InversionSettings | None = None) -
         scale = settings.discrepancy if fixed_discrepancy is None else 0.0
         if gain_marginal_obstacle(window, settings.shot_factor, scale) is None:
             overrides["gain"] = {**overrides.get("gain", {}), "marginalised": True}
-    space = default_space(nuisance, overrides, settings.ridges)
+    space = default_space(nuisance, overrides, settings.ridges, settings.unbounded)
     mapping = StandMapping(default_template(settings.shape_pair), settings.shape_pair)
     model = ExpectedWaveformModel(
         instrument,

@@ -12,7 +12,7 @@ from .lockstep import minimize_in_lockstep
 #: Large finite objective for the optimiser where the log-density is −inf.
 _PENALTY = 1e12
 
-#: Screened starts closer than this (unbounded units, where a prior spans about ±5) to a
+#: Screened starts closer than this (unbounded units, where a prior spans about ±3) to a
 #: better one are not polished: they would most likely end in the same optimum.
 POLISH_SPACING = 0.25
 
