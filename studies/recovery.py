@@ -17,6 +17,7 @@ parameters' log-posterior: with ``--inverse-crime`` those are search failures.
                                [--discrepancy-model observed] [--seed 1] [--tag _NAME]
                                [--map-search CANDIDATES STARTS SCREEN POLISH]
                                [--truth study|prior] [--mode-window 5] [--sample-gain]
+                               [--ground-prior-sd M]
 
 Writes studies/output/recovery[_inverse_crime]/{summary.json,shots.json,*.png}.
 """
@@ -285,6 +286,12 @@ def main():
         "--sample-gain", action="store_true", help="sample the gain instead of integrating it out"
     )
     parser.add_argument(
+        "--ground-prior-sd",
+        type=float,
+        default=None,
+        help="sd (m) of the ground prior around the detected peak (default: one bin)",
+    )
+    parser.add_argument(
         "--map-search",
         nargs=4,
         type=int,
@@ -296,6 +303,7 @@ def main():
         discrepancy=args.discrepancy,
         discrepancy_model=args.discrepancy_model,
         marginalise_gain=not args.sample_gain,
+        ground_prior_sd_m=args.ground_prior_sd,
     )
     sampler = replace(settings.sampler, max_steps=args.max_steps, mode_window=args.mode_window)
     if args.map_search:
@@ -328,6 +336,7 @@ def main():
             "map_search": {k: getattr(settings.sampler, k) for k in MAP_SEARCH_FIELDS},
             "mode_window": args.mode_window,
             "gain_marginalised": not args.sample_gain,
+            "ground_prior_sd_m": args.ground_prior_sd,
             "wall_seconds": time.perf_counter() - start,
             "workers": args.workers,
         }

@@ -3,6 +3,7 @@
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from scipy import stats
 
 from forward.pulse import MeasuredPulse
@@ -62,6 +63,21 @@ def test_ground_prior_centres_on_the_detected_peak_and_window_holds_empty_bins()
     top = problem.space.by_name["top_height"].prior.upper
     assert problem.window.axis[-1] > problem.analysis.signal_start + 5.0
     assert top < problem.window.axis[-1] - prior.mean
+
+
+def test_ground_prior_is_a_bin_wide_unless_set():
+    """Low vegetation pulls the detected peak up by about a bin, so the prior around it
+    is at least a bin wide, not the peak fit's uncertainty (a fraction of a bin); an
+    explicit width is used as given, and a non-positive one is refused."""
+    obs = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], np.random.default_rng(3), explicit=False)
+    problem = build_problem(obs)
+    prior = problem.space.by_name["ground_elevation"].prior
+    assert problem.analysis.ground_uncertainty < obs.bin_size
+    assert prior.sd == obs.bin_size
+    narrow = build_problem(obs, InversionSettings(ground_prior_sd_m=0.075))
+    assert narrow.space.by_name["ground_elevation"].prior.sd == 0.075
+    with pytest.raises(ValueError, match="ground_prior_sd_m must be positive"):
+        build_problem(obs, InversionSettings(ground_prior_sd_m=0.0))
 
 
 def _window(rng, bins=40):
