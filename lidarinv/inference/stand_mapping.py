@@ -20,6 +20,8 @@ from forward.crowns import CROWN_SHAPES
 from forward.expected import MIX_FIELDS, VECTOR_FIELDS
 from forward.stand_params import HEIGHT_DISTRIBUTIONS, StandParams
 
+from . import compiled_stand
+
 #: top_height = height_mean + TOP_SDS·height_sd.
 TOP_SDS = 2.0
 
@@ -87,6 +89,8 @@ class StandMapping:
         self._volume = np.array([CROWN_SHAPES[s].volume_fraction for s in shape_pair])
         self._leaf = self._volume * np.array([ratio[s] for s in shape_pair])
         self.model_free = MODEL_FIELDS + tuple(f"mix_{s}" for s in shape_pair)
+        #: model_vectors through :mod:`.compiled_stand` (truncated-normal heights only)
+        self.compiled = template.height_family == "truncnorm"
         assert all(f in MIX_FIELDS for f in self.model_free[len(MODEL_FIELDS) :])
 
     def _quadrature(self, mean, sd):
@@ -125,28 +129,30 @@ class StandMapping:
         """Expected-model vectors (n, len(model_free)) and scalar derived quantities.
 
         ``v`` maps every parameter name to an (n,) array; rows must be :meth:`valid`.
-        Expectations over heights are closed forms of the raw moments E[h^k], k ≤ 3.
+        Expectations over heights are closed forms of the raw moments E[h^k], k ≤ 3;
+        truncated-normal heights take the compiled path (:mod:`.compiled_stand`).
         """
-        mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
-        m1, m2, m3 = np.moveaxis(
-            self.family.raw_moments((1, 2, 3), mean, sd, self.truncation), -1, 0
-        )
-        r0, r1 = self.template.crown_radius_intercept, v["crown_radius_slope"]
-        ratio = v["crown_length_ratio"]
-        mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
-        per_stem_area = np.pi * (r0 * r0 + 2.0 * r0 * r1 * m1 + r1 * r1 * m2)  # E[π R²]
-        crown_volume = (
-            np.pi * (r0 * r0 * m1 + 2.0 * r0 * r1 * m2 + r1 * r1 * m3) * ratio
-        )  # E[π R² ℓ h]
-        lam = -np.log1p(-v["cover"]) / per_stem_area
-        volume = lam * crown_volume * (mix @ self._volume)
-        favd = v["pai"] / (lam * crown_volume * (mix @ self._leaf))
-        vectors = np.column_stack(
+        if self.compiled:
+            columns = compiled_stand.stand_columns(
+                v,
+                self.template.crown_radius_intercept,
+                TOP_SDS,
+                self.truncation,
+                self._volume,
+                self._leaf,
+                DOMINANT_PER_HA,
+            )
+            lam, mean, favd, area, m1, volume, dominant = columns.T
+        else:
+            lam, mean, favd, area, m1, volume, dominant = self._stand_columns(v)
+        cone = v["cone_fraction"]
+        vectors = np.empty((lam.size, len(self.model_free)))
+        vectors[:, : len(MODEL_FIELDS)] = np.column_stack(
             [
                 lam * 1e4,
                 mean,
-                sd,
-                ratio,
+                v["height_sd"],
+                v["crown_length_ratio"],
                 np.full_like(mean, self.template.crown_radius_intercept),
                 v["crown_radius_slope"],
                 favd,
@@ -155,19 +161,40 @@ class StandMapping:
                 v["rho_ratio"],
                 np.ones_like(mean),
                 v["ground_elevation"],
-                mix,
             ]
         )
+        vectors[:, -2] = cone
+        vectors[:, -1] = 1.0 - cone
         derived = {
-            "crown_area": per_stem_area,  # m², not a blob: for the discrepancy model
+            "crown_area": area,  # m², not a blob: for the discrepancy model
             "density": lam * 1e4,
             "favd": favd,
             "mean_height": m1,
-            "dominant_height": self._dominant_height(mean, sd, lam * 1e4),
+            "dominant_height": dominant,
             "crown_volume": volume * 1e4,
             "lai": v["pai"] + v["understory_lai"],
         }
         return vectors, derived
+
+    def _stand_columns(self, v):
+        """Density (stems/m²), mean of the parent normal (m), FAVD (m²/m³), crown area
+        E[π R²] (m²), mean height (m), crown volume (m³/m²) and dominant height (m) per
+        row, in numpy for any height family (the reference of the compiled path)."""
+        mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
+        m1, m2, m3 = np.moveaxis(
+            self.family.raw_moments((1, 2, 3), mean, sd, self.truncation), -1, 0
+        )
+        r0, r1 = self.template.crown_radius_intercept, v["crown_radius_slope"]
+        mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
+        per_stem_area = np.pi * (r0 * r0 + 2.0 * r0 * r1 * m1 + r1 * r1 * m2)  # E[π R²]
+        crown_volume = (
+            np.pi * (r0 * r0 * m1 + 2.0 * r0 * r1 * m2 + r1 * r1 * m3) * v["crown_length_ratio"]
+        )  # E[π R² ℓ h]
+        lam = -np.log1p(-v["cover"]) / per_stem_area
+        volume = lam * crown_volume * (mix @ self._volume)
+        favd = v["pai"] / (lam * crown_volume * (mix @ self._leaf))
+        dominant = self._dominant_height(mean, sd, lam * 1e4)
+        return lam, mean, favd, per_stem_area, m1, volume, dominant
 
     def crowns_spanning(self, v, z) -> np.ndarray:
         """Stems per m² whose crowns span height ``z`` (m above the ground), (n, nz).
