@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import integrate, stats
 
-from lidarinv.inference import coordinates
+from lidarinv.inference import InversionSettings, coordinates
 from lidarinv.inference.parameters import default_space, read_priors_file
 from lidarinv.inference.priors import (
     UNBOUNDED_MAPS,
@@ -107,6 +107,14 @@ def test_bad_prior_specifications_are_named():
         make_prior({"kind": "cauchy", "lower": 0, "upper": 1})
 
 
+def test_priors_file_sets_the_ground_prior_width(tmp_path):
+    path = tmp_path / "priors.toml"
+    path.write_text("[ground]\nprior_sd = 0.3\n[rho_ratio]\nfixed = 1.5\n")
+    settings = InversionSettings.from_priors_file(path)
+    assert settings.ground_prior_sd_m == 0.3
+    assert "ground" not in settings.priors and "rho_ratio" in settings.priors
+
+
 def test_priors_file_overrides_fix_and_free(tmp_path, nuisance_priors):
     path = tmp_path / "priors.toml"
     path.write_text(
@@ -129,6 +137,8 @@ def test_priors_file_overrides_fix_and_free(tmp_path, nuisance_priors):
         ("[cover\n", "not valid TOML"),
         ("[favd]\nlower = 2.0\nupper = 1.0\n", "lower < upper"),
         ("[favd]\nmedian = 1.0\n", "takes lower and upper"),
+        ("[ground]\nprior_sd = -0.1\n", "positive number of metres"),
+        ("[ground]\nsd = 0.1\n", "takes prior_sd"),
     ],
 )
 def test_priors_file_errors_name_the_problem(tmp_path, text, message):

@@ -298,14 +298,17 @@ def read_priors_file(path) -> dict:
 
     A ``[favd]`` table with ``lower`` and ``upper`` (m²/m³) bounds the FAVD implied by the
     other parameters (a joint prior constraint, see ``InversionSettings.favd_range``); it
-    is returned under the key ``"favd"`` as ``{"range": (lower, upper)}``.
+    is returned under the key ``"favd"`` as ``{"range": (lower, upper)}``. A ``[ground]``
+    table with ``prior_sd`` (m) sets the width of the ground-elevation prior around the
+    detected peak (``InversionSettings.ground_prior_sd_m``); it is returned under the key
+    ``"ground"`` as ``{"prior_sd": value}``.
     """
     try:
         with open(path, "rb") as handle:
             table = tomllib.load(handle)
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"{path}: not valid TOML: {error}") from None
-    known = set(STRUCTURE) | set(NUISANCE) | {"favd"}
+    known = set(STRUCTURE) | set(NUISANCE) | set(_SETTINGS_TABLES)
     unknown = sorted(set(table) - known)
     if unknown:
         raise ValueError(f"{path}: unknown parameter(s) {unknown}; known: {sorted(known)}")
@@ -313,8 +316,8 @@ def read_priors_file(path) -> dict:
     for name, spec in table.items():
         if not isinstance(spec, dict):
             raise ValueError(f"{path}: [{name}] must be a table")
-        if name == "favd":
-            changes[name] = _favd_range(path, spec)
+        if name in _SETTINGS_TABLES:
+            changes[name] = _SETTINGS_TABLES[name](path, spec)
             continue
         spec = dict(spec)
         change = {}
@@ -339,3 +342,17 @@ def _favd_range(path, spec) -> dict:
     if not (0.0 <= low < high):
         raise ValueError(f"{path}: [favd] needs 0 <= lower < upper, got {low}, {high}")
     return {"range": (low, high)}
+
+
+def _ground_prior(path, spec) -> dict:
+    unknown = sorted(set(spec) - {"prior_sd"})
+    if unknown:
+        raise ValueError(f"{path}: [ground] takes prior_sd (m), not {unknown}")
+    sd = float(spec.get("prior_sd", np.nan))
+    if not (np.isfinite(sd) and sd > 0):
+        raise ValueError(f"{path}: [ground] prior_sd must be a positive number of metres")
+    return {"prior_sd": sd}
+
+
+#: Priors-file tables that set InversionSettings rather than a parameter's prior.
+_SETTINGS_TABLES = {"favd": _favd_range, "ground": _ground_prior}

@@ -121,6 +121,9 @@ class InversionSettings:
         favd = priors.pop("favd", None)
         if favd is not None:
             changes.setdefault("favd_range", favd["range"])
+        ground = priors.pop("ground", None)
+        if ground is not None:
+            changes.setdefault("ground_prior_sd_m", ground["prior_sd"])
         return cls(priors=priors, **changes)
 
     def describe(self) -> dict:
