@@ -55,11 +55,12 @@ class UnboundedMap:
 
 
 #: Unbounded maps by name (``InversionSettings.unbounded``). Neither is better on every
-#: shot. On the speed study's six 10-free GEDI shots (``studies/inversion_speed.py``)
-#: ``probit`` converged on 4 (steps 13 438, 11 107, 3 896, 6 899) and ``logit`` on 3
-#: (5 702, 4 713, 4 713; the first unconverged at 20 000): ``probit`` helps where a
-#: parameter piles against a bound (crown length ratio, height sd) and slows the shots
-#: whose slowest direction is the understory. ``studies/sampling_coordinates.py``
+#: shot. On the speed study's six 10-free GEDI shots (``studies/inversion_speed.py``,
+#: with the former half-bin ground prior) ``probit`` converged on 4 (steps 13 438,
+#: 11 107, 3 896, 6 899) and ``logit`` on 3 (the last three in 5 702, 4 713, 4 713; the
+#: first ran to 20 000 unconverged): ``probit`` helps where a parameter piles against a
+#: bound (crown length ratio, height sd) and slows the shots whose slowest direction is
+#: the understory. ``studies/sampling_coordinates.py``
 #: (6 other shots, 12 000 steps, τ of the physical quantities) gives a median largest τ
 #: of 110 under ``probit`` against 97 under ``logit``.
 UNBOUNDED_MAPS = {

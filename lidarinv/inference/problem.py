@@ -56,7 +56,7 @@ class InversionSettings:
         recovery study's explicit GEDI stands), so a prior as narrow as half a bin, the
         former width, dragged the posterior with it (errors correlated at 0.95) and left
         it under-covered; one as wide as the pulse (σ 0.96 m) let the ground trade off
-        against the understory (README, "Likelihood").
+        against the understory (README, "Ground prior").
     margin_above_m, margin_below_m : float (m)
         Window beyond the detected signal; above, at least half the detected canopy
         height too. Signal-free bins above the canopy constrain the top height, and the

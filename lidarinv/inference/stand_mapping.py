@@ -146,8 +146,7 @@ class StandMapping:
         else:
             lam, mean, favd, area, m1, volume, dominant = self._stand_columns(v)
         cone = v["cone_fraction"]
-        vectors = np.empty((lam.size, len(self.model_free)))
-        vectors[:, : len(MODEL_FIELDS)] = np.column_stack(
+        vectors = np.column_stack(
             [
                 lam * 1e4,
                 mean,
@@ -161,10 +160,10 @@ class StandMapping:
                 v["rho_ratio"],
                 np.ones_like(mean),
                 v["ground_elevation"],
+                cone,
+                1.0 - cone,
             ]
         )
-        vectors[:, -2] = cone
-        vectors[:, -1] = 1.0 - cone
         derived = {
             "crown_area": area,  # m², not a blob: for the discrepancy model
             "density": lam * 1e4,
