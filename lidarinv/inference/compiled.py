@@ -116,6 +116,12 @@ def _prior_log_pdf(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
     return out
 
 
+@njit(cache=True)
+def normal_cdf(x):
+    """Φ(x), the standard normal CDF, from erfc (accurate in both tails)."""
+    return 0.5 * math.erfc(-x / _SQRT2)
+
+
 #: Codes of the unbounded maps in the compiled kernel (:data:`.priors.UNBOUNDED_MAPS`).
 LOGIT, PROBIT = 0, 1
 
@@ -127,7 +133,7 @@ def _unit_and_log_slope(t, kind):
     """f(t) ∈ [0, 1] and log f′(t) of the logistic (``LOGIT``) or normal (``PROBIT``) CDF,
     without overflow either side."""
     if kind == PROBIT:
-        return 0.5 * math.erfc(-t / math.sqrt(2.0)), -0.5 * t * t - _LOG_SQRT_2PI
+        return normal_cdf(t), -0.5 * t * t - _LOG_SQRT_2PI
     if t >= 0.0:
         e = math.exp(-t)
         return 1.0 / (1.0 + e), -t - 2.0 * math.log1p(e)

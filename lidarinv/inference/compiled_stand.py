@@ -14,16 +14,12 @@ import numpy as np
 from numba import njit
 from scipy.special import ndtri
 
-_SQRT2 = math.sqrt(2.0)
+from .compiled import normal_cdf as _cdf
+
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
 
 #: Columns of the array :func:`stand_columns` returns.
 COLUMNS = ("density_m2", "mean", "favd", "crown_area", "mean_height", "volume", "dominant")
-
-
-@njit(cache=True)
-def _cdf(x):
-    return 0.5 * math.erfc(-x / _SQRT2)
 
 
 @njit(cache=True)
