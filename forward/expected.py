@@ -276,6 +276,11 @@ class ExpectedWaveformModel:
         full[:, self._free_index] = theta
         return full
 
+    def full_vectors(self, theta) -> np.ndarray:
+        """Rows of parameter vectors completed with the template: (n, len(VECTOR_FIELDS)),
+        e.g. for :func:`forward.expected_vectors.params_from_vector`."""
+        return self._full(theta)
+
     def valid(self, theta) -> np.ndarray:
         """True for rows that are physical parameter vectors."""
         return self._valid(self._full(theta))

@@ -4,11 +4,15 @@ The fields a vector may carry (:data:`VECTOR_FIELDS`), the default free ones, an
 test of which full vectors describe a physical stand (:func:`physical_rows`): finite
 values within each field's bounds, shape fractions summing to 1, and height moments the
 family supports. Invalid rows are masked by the model, never raised on.
+:func:`params_from_vector` turns a full vector back into a stand, e.g. to realise it.
 """
+
+from dataclasses import replace
 
 import numpy as np
 
 from .crowns import SHAPE_NAMES
+from .stand_params import StandParams
 
 #: Every quantity a parameter vector may carry, in the order of the model's full vector.
 VECTOR_FIELDS = (
@@ -94,3 +98,16 @@ def physical_rows(v, family, truncation):
         good &= family.valid(np.abs(mean) + 1e-9, np.abs(sd), truncation)
         ok &= ~two | good
     return ok
+
+
+def params_from_vector(full, template: StandParams) -> tuple[StandParams, float]:
+    """The stand and the ground elevation (m) of one full vector (len(VECTOR_FIELDS)),
+    with the template's fixed settings (height family, truncation, FAVD ratios): the
+    inverse of :meth:`forward.expected.ExpectedWaveformModel.full_vector`."""
+    full = np.asarray(full, float)
+    if full.shape != (len(VECTOR_FIELDS),):
+        raise ValueError(f"a full vector has {len(VECTOR_FIELDS)} values, got shape {full.shape}")
+    values = dict(zip(VECTOR_FIELDS, full.tolist()))
+    ground = values.pop("ground_elevation")
+    mix = tuple(values.pop(name) for name in MIX_FIELDS)
+    return replace(template, shape_mix=mix, **values), ground

@@ -4,11 +4,14 @@ GEDI-like synthetic shots (explicit random stands, see :mod:`lidarinv.inference.
 are inverted on one core, BLAS threads pinned to 1, in two configurations: the default
 settings (13 free parameters) and ``10-free`` (baseline and noise σ held at the shot's
 estimates, crown-shape mix fixed at half cones). Reported per shot: wall time, steps,
-walkers, max τ, converged, and the cost of one log-posterior row. Target: ≤ 10 s per
-footprint with ~10 free parameters.
+walkers, max τ, converged, the seconds spent simulating a ``realisations`` discrepancy,
+and the cost of one log-posterior row (of the pilot posterior, with the per-bin
+discrepancy, under ``realisations``). Target: ≤ 10 s per footprint with ~10 free
+parameters.
 
     python studies/inversion_speed.py [--n 3] [--max-steps 20000] [--config default 10-free]
                                       [--sample-gain] [--unbounded logit|probit] [--tag _NAME]
+                                      [--discrepancy-model observed|realisations]
 
 Writes studies/output/inversion_speed[_TAG]/summary.json.
 """
@@ -27,6 +30,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from lidarinv.inference import InversionSettings, build_problem, invert_shot  # noqa: E402
+from lidarinv.inference.discrepancy import DISCREPANCY_MODELS  # noqa: E402
 from lidarinv.inference.priors import DEFAULT_UNBOUNDED, UNBOUNDED_MAPS  # noqa: E402
 from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
 
@@ -83,6 +87,7 @@ def _run(settings, n, seed, name):
                 "free_parameters": len(result.parameter_names),
                 "sampled_parameters": len(d["sampled"]),
                 "start_seconds": d["seconds"]["start"],
+                "discrepancy_seconds": d["seconds"].get("discrepancy", 0.0),
                 "sampling_seconds": d["seconds"]["sampling"],
                 "window_bins": int(result.axis.size),
                 "microseconds_per_evaluation": per_row * 1e6,
@@ -104,12 +109,21 @@ def main():
     parser.add_argument(
         "--unbounded", default=DEFAULT_UNBOUNDED, choices=UNBOUNDED_MAPS, help="sampling map"
     )
+    parser.add_argument(
+        "--discrepancy-model",
+        default=InversionSettings().discrepancy_model,
+        choices=sorted(DISCREPANCY_MODELS),
+    )
     parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     summary = {"target_seconds": TARGET_SECONDS, "load_average": os.getloadavg()}
     for name in args.config:
         settings = replace(
-            InversionSettings(marginalise_gain=not args.sample_gain, unbounded=args.unbounded),
+            InversionSettings(
+                marginalise_gain=not args.sample_gain,
+                unbounded=args.unbounded,
+                discrepancy_model=args.discrepancy_model,
+            ),
             **CONFIGURATIONS[name],
         )
         settings = replace(settings, sampler=replace(settings.sampler, max_steps=args.max_steps))
@@ -121,6 +135,7 @@ def main():
         }
     summary["gain_marginalised"] = not args.sample_gain
     summary["unbounded"] = args.unbounded
+    summary["discrepancy_model"] = args.discrepancy_model
     folder = Path(__file__).parent / "output" / ("inversion_speed" + args.tag)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "summary.json").write_text(json.dumps(summary, indent=1))

@@ -20,6 +20,7 @@ KNOWN = {"rho_ratio": 1.5, "understory_lai": 0.3, "understory_height": 1.0}
 QUICK = InversionSettings(
     sampler=SamplerSettings(max_steps=3000, check_every=500),
     priors={name: {"fixed": value} for name, value in KNOWN.items()},
+    discrepancy_model="observed",  # the shot is the expected waveform: no arrangement to model
 )
 
 

@@ -115,6 +115,17 @@ def test_priors_file_sets_the_ground_prior_width(tmp_path):
     assert "ground" not in settings.priors and "rho_ratio" in settings.priors
 
 
+def test_priors_file_chooses_the_discrepancy(tmp_path):
+    path = tmp_path / "priors.toml"
+    path.write_text('[discrepancy]\nmodel = "observed"\neta = 0.3\n')
+    settings = InversionSettings.from_priors_file(path)
+    assert settings.discrepancy_model == "observed" and settings.discrepancy == 0.3
+    path.write_text("[discrepancy]\ncount = 32\n")
+    settings = InversionSettings.from_priors_file(path)
+    assert settings.discrepancy_model == "realisations" and settings.realisations.count == 32
+    assert "discrepancy" not in settings.priors
+
+
 def test_priors_file_overrides_fix_and_free(tmp_path, nuisance_priors):
     path = tmp_path / "priors.toml"
     path.write_text(
@@ -139,6 +150,10 @@ def test_priors_file_overrides_fix_and_free(tmp_path, nuisance_priors):
         ("[favd]\nmedian = 1.0\n", "takes lower and upper"),
         ("[ground]\nprior_sd = -0.1\n", "positive number of metres"),
         ("[ground]\nsd = 0.1\n", "takes prior_sd"),
+        ("[discrepancy]\nmodel = 'kriging'\n", "is not one of"),
+        ("[discrepancy]\neta = -1\n", "eta must be"),
+        ("[discrepancy]\ncount = 1\n", "count must be"),
+        ("[discrepancy]\nshrinkage = 0.1\n", "takes model, eta and count"),
     ],
 )
 def test_priors_file_errors_name_the_problem(tmp_path, text, message):

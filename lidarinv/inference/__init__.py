@@ -7,6 +7,7 @@ from .parameters import Parameter, ParameterSpace, default_space, read_priors_fi
 from .posterior import BLOB_NAMES, LogPosterior
 from .priors import PRIOR_KINDS, LogUniform, TruncatedNormal, Uniform, make_prior
 from .problem import InversionProblem, InversionSettings, build_problem
+from .realisations import RealisationSettings
 from .result import InversionResult
 from .sampling import SamplerSettings, find_map, run_sampler
 from .stand_mapping import StandMapping, default_template
@@ -21,6 +22,7 @@ __all__ = [
     "LogUniform",
     "Parameter",
     "ParameterSpace",
+    "RealisationSettings",
     "SamplerSettings",
     "StandMapping",
     "TruncatedNormal",

@@ -11,6 +11,9 @@ holds one. The difference enters the likelihood as an extra variance per bin, a 
     (η·ŝ_j)², ŝ the observed signal above the noise mean (lightly smoothed: the noise
     adds only η²σn² to the variance): the same for every row, so the variance cannot
     pull the parameters.
+``realisations``
+    A covariance between bins simulated from explicit realisations around a pilot MAP
+    (:mod:`.realisations`); the pilot uses ``observed``.
 
 The helpers :func:`footprint_area` and :func:`gap_cv2` describe the spread of a Poisson
 stand seen through a Gaussian footprint (``studies/discrepancy.py``).
@@ -36,11 +39,16 @@ def observed_variance(samples, baseline, smooth_bins, scale) -> np.ndarray:
 
 
 #: Discrepancy models by name: None where the variance is computed per row from the model
-#: waveform, else the function of the observation that gives a fixed per-bin variance.
+#: waveform, else the function of the observation that gives a fixed per-bin variance
+#: (for ``realisations``, that of the pilot MAP search).
 DISCREPANCY_MODELS = {
     "model": None,
     "observed": observed_variance,
+    "realisations": observed_variance,
 }
+
+#: The discrepancy model that replaces the per-bin variance by a simulated covariance.
+SIMULATED = "realisations"
 
 
 def footprint_area(footprint_sigma_m) -> float:

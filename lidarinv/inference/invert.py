@@ -5,9 +5,12 @@ import numpy as np
 
 from lidarinv.observe.observation import Observation
 
+from .correlated import covariance_obstacle
+from .discrepancy import SIMULATED
 from .likelihood import model_moments
 from .posterior import BLOB_NAMES, BLOB_UNITS
 from .problem import InversionProblem, InversionSettings, build_problem
+from .realisations import with_realisation_covariance
 from .result import QUANTILES, InversionResult
 from .sampling import SamplerRun, run_sampler
 
@@ -35,6 +38,8 @@ def invert_shot(
         Show a progress bar.
     backend_path : path, optional
         HDF5 file for the emcee chain (group ``shot_<id>``); a run found there is resumed.
+        A ``realisations`` discrepancy is simulated again on resuming: pass a generator
+        seeded as for the first run to continue under the same covariance.
 
     Raises
     ------
@@ -43,6 +48,15 @@ def invert_shot(
     """
     rng = np.random.default_rng() if rng is None else rng
     problem = build_problem(observation, settings)
+    start, simulated, notes = None, None, []
+    if problem.settings.discrepancy_model == SIMULATED:
+        obstacle = covariance_obstacle(problem.window, problem.settings.shot_factor)
+        if obstacle is None:
+            problem, start, simulated = with_realisation_covariance(
+                problem, rng, problem.settings.realisations
+            )
+        else:
+            notes.append(f"per-bin discrepancy used instead of realisations: {obstacle}")
     backend = None
     if backend_path is not None:
         backend = emcee.backends.HDFBackend(str(backend_path), name=f"shot_{observation.shot_id}")
@@ -53,8 +67,14 @@ def invert_shot(
         problem.settings.sampler,
         backend=backend,
         progress=progress,
+        start=start,
         coordinates=problem.space.signature(),
     )
+    run.flags.extend(notes)
+    if simulated is not None:
+        run.seconds["discrepancy"] = simulated["seconds"]
+        if not simulated["map_converged"]:
+            run.flags.append("MAP optimiser did not report convergence")
     return collect_result(problem, run, rng)
 
 

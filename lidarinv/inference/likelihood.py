@@ -88,17 +88,19 @@ def row_log_likelihood(
     shot_factor=0.0,
     discrepancy_scale=0.0,
     fixed_variance=None,
+    unit=None,
 ) -> np.ndarray:
     """Log-likelihood of model waveforms ``signal`` W (n, bins), the fast path.
 
     The same value as :func:`log_likelihood` of :func:`model_moments`, with the extra
     variance (η·a·W)² (η = ``discrepancy_scale``) plus ``fixed_variance`` (bins,) (DN²):
     compiled over the exactly recorded bins (:mod:`.compiled`), numpy over the censored
-    and saturated ones.
+    and saturated ones. ``unit`` is the baseline's pattern in a rotated basis
+    (:mod:`.correlated`, where every bin is exact).
     """
     fixed = np.zeros(data.axis.size) if fixed_variance is None else fixed_variance
     total = compiled.gaussian_exact(
-        signal, gain, baseline, noise_sigma, shot_factor, discrepancy_scale, fixed, data
+        signal, gain, baseline, noise_sigma, shot_factor, discrepancy_scale, fixed, data, unit
     )
     limited = data.censored | data.saturated
     if limited.any():

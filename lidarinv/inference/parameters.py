@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from . import coordinates
+from .discrepancy import DISCREPANCY_MODELS
 from .priors import (
     DEFAULT_UNBOUNDED,
     LogUniform,
@@ -301,7 +302,11 @@ def read_priors_file(path) -> dict:
     is returned under the key ``"favd"`` as ``{"range": (lower, upper)}``. A ``[ground]``
     table with ``prior_sd`` (m) sets the width of the ground-elevation prior around the
     detected peak (``InversionSettings.ground_prior_sd_m``); it is returned under the key
-    ``"ground"`` as ``{"prior_sd": value}``.
+    ``"ground"`` as ``{"prior_sd": value}``. A ``[discrepancy]`` table with any of
+    ``model`` (``realisations``, ``observed`` or ``model``), ``eta`` (η) and ``count``
+    (realisations) chooses the model-discrepancy term (``InversionSettings.
+    discrepancy_model``, ``discrepancy``, ``realisations.count``); it is returned under
+    the key ``"discrepancy"`` as a dict of those keys.
     """
     try:
         with open(path, "rb") as handle:
@@ -354,5 +359,30 @@ def _ground_prior(path, spec) -> dict:
     return {"prior_sd": sd}
 
 
+def _discrepancy(path, spec) -> dict:
+    unknown = sorted(set(spec) - {"model", "eta", "count"})
+    if unknown:
+        raise ValueError(f"{path}: [discrepancy] takes model, eta and count, not {unknown}")
+    out = {}
+    if "model" in spec:
+        if spec["model"] not in DISCREPANCY_MODELS:
+            raise ValueError(
+                f"{path}: [discrepancy] model {spec['model']!r} is not one of "
+                f"{sorted(DISCREPANCY_MODELS)}"
+            )
+        out["model"] = spec["model"]
+    if "eta" in spec:
+        eta = float(spec["eta"])
+        if not (np.isfinite(eta) and eta >= 0):
+            raise ValueError(f"{path}: [discrepancy] eta must be a number ≥ 0")
+        out["eta"] = eta
+    if "count" in spec:
+        count = spec["count"]
+        if not (isinstance(count, int) and count >= 2):
+            raise ValueError(f"{path}: [discrepancy] count must be an integer ≥ 2")
+        out["count"] = count
+    return out
+
+
 #: Priors-file tables that set InversionSettings rather than a parameter's prior.
-_SETTINGS_TABLES = {"favd": _favd_range, "ground": _ground_prior}
+_SETTINGS_TABLES = {"favd": _favd_range, "ground": _ground_prior, "discrepancy": _discrepancy}

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import compiled
+from .correlated import Rotation, covariance_obstacle
 from .likelihood import WindowData, row_log_likelihood
 from .marginal import GainMarginal, gain_marginal_obstacle
 from .parameters import ParameterSpace
@@ -73,9 +74,10 @@ class LogPosterior:
         g, shot-noise variance per unit signal (DN).
     discrepancy : float
         η, model-discrepancy standard deviation as a fraction of the signal.
-    fixed_discrepancy : array (bins,) (DN²), optional
-        A discrepancy variance fixed by the observation (:mod:`.discrepancy`), used
-        instead of (η·a·W)².
+    fixed_discrepancy : array (bins,) or (bins, bins) (DN²), optional
+        A discrepancy fixed for the shot, used instead of (η·a·W)²: a variance per bin
+        (:mod:`.discrepancy`) or a covariance between bins (:mod:`.realisations`), which
+        the likelihood takes in its eigenbasis (:mod:`.correlated`).
 
     A gain marked ``marginalised`` in ``space`` is integrated out of the likelihood
     (:mod:`.marginal`); that needs a variance independent of the gain and no censored or
@@ -103,15 +105,25 @@ class LogPosterior:
         if not (0.0 <= low < high):
             raise ValueError(f"favd_range needs 0 <= low < high, got {favd_range}")
         self.favd_range = (low, high)
+        self.rotation = None
         if fixed_discrepancy is not None:
             fixed_discrepancy = np.asarray(fixed_discrepancy, float)
-            good = np.all(np.isfinite(fixed_discrepancy) & (fixed_discrepancy >= 0))
-            if fixed_discrepancy.shape != data.axis.shape or not good:
-                raise ValueError("fixed_discrepancy must be finite, ≥ 0 and one per window bin")
+            if fixed_discrepancy.ndim == 2:
+                obstacle = covariance_obstacle(data, self.shot_factor)
+                if obstacle is not None:
+                    raise ValueError(f"a discrepancy covariance cannot be used: {obstacle}")
+                self.rotation = Rotation.of(fixed_discrepancy, data)
+            else:
+                good = np.all(np.isfinite(fixed_discrepancy) & (fixed_discrepancy >= 0))
+                if fixed_discrepancy.shape != data.axis.shape or not good:
+                    raise ValueError("fixed_discrepancy must be finite, ≥ 0 and one per window bin")
         self.fixed_discrepancy = fixed_discrepancy
-        self._fixed_variance = (
-            np.zeros(data.axis.size) if fixed_discrepancy is None else fixed_discrepancy
-        )
+        if self.rotation is not None:
+            self._fixed_variance = self.rotation.variances
+        elif fixed_discrepancy is None:
+            self._fixed_variance = np.zeros(data.axis.size)
+        else:
+            self._fixed_variance = fixed_discrepancy
         # η of a discrepancy proportional to each row's model: none when the observation
         # fixes the discrepancy
         self._discrepancy_scale = self.discrepancy if fixed_discrepancy is None else 0.0
@@ -154,25 +166,31 @@ class LogPosterior:
                 ok &= plausible
             result = self.model.evaluate(vectors)
             ok &= result.valid
+            signal, data, unit = result.samples, self.data, None
+            if self.rotation is not None:
+                signal = self.rotation.rotate(signal)
+                data, unit = self.rotation.data, self.rotation.unit
             gain_fit = None
             if self.gain_marginal is None:
                 like = row_log_likelihood(
-                    self.data,
-                    result.samples,
+                    data,
+                    signal,
                     values["gain"],
                     values["baseline"],
                     values["noise_sigma"],
                     self.shot_factor,
                     self._discrepancy_scale,
-                    self.fixed_discrepancy,
+                    self._fixed_variance,
+                    unit,
                 )
             else:
                 gain_fit = compiled.linear_fit(
-                    result.samples,
+                    signal,
                     values["baseline"],
                     values["noise_sigma"],
                     self._fixed_variance,
-                    self.data,
+                    data,
+                    unit,
                 )
                 like = self.gain_marginal.log_likelihood(gain_fit)
                 gain_fit[~ok] = np.nan

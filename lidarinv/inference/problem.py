@@ -18,6 +18,7 @@ from .marginal import gain_marginal_obstacle
 from .parameters import DEFAULT_STRUCTURE_PRIORS, default_space, read_priors_file
 from .posterior import LogPosterior
 from .priors import DEFAULT_UNBOUNDED, LogUniform, TruncatedNormal, Uniform
+from .realisations import RealisationSettings
 from .sampling import SamplerSettings
 from .stand_mapping import StandMapping, default_template
 
@@ -70,7 +71,11 @@ class InversionSettings:
         waveform (``studies/discrepancy.py``), and 0.2 recovered best in the study.
     discrepancy_model : str
         Which signal the discrepancy is a fraction of (:mod:`.discrepancy`): ``model``,
-        each row's model waveform, or ``observed``, the shot's own signal.
+        each row's model waveform, or ``observed``, the shot's own signal; or
+        ``realisations``, a covariance between bins simulated from explicit stands around
+        a pilot MAP found with ``observed`` (:mod:`.realisations`).
+    realisations : RealisationSettings
+        How the ``realisations`` covariance is simulated.
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
         cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None
@@ -106,7 +111,7 @@ class InversionSettings:
     margin_below_m: float = 5.0
     shot_factor: float = 0.0
     discrepancy: float = 0.2
-    discrepancy_model: str = "observed"
+    discrepancy_model: str = "realisations"
     favd_range: tuple | None = None
     shape_pair: tuple = ("cone", "ellipsoid")
     ridges: tuple = DEFAULT_RIDGES
@@ -114,6 +119,7 @@ class InversionSettings:
     priors: dict = field(default_factory=dict)
     sampler: SamplerSettings = field(default_factory=SamplerSettings)
     model: ModelSettings = field(default_factory=ModelSettings)
+    realisations: RealisationSettings = field(default_factory=RealisationSettings)
 
     @classmethod
     def from_priors_file(cls, path, **changes) -> "InversionSettings":
@@ -124,10 +130,19 @@ class InversionSettings:
         ground = priors.pop("ground", None)
         if ground is not None:
             changes.setdefault("ground_prior_sd_m", ground["prior_sd"])
+        discrepancy = priors.pop("discrepancy", {})
+        if "model" in discrepancy:
+            changes.setdefault("discrepancy_model", discrepancy["model"])
+        if "eta" in discrepancy:
+            changes.setdefault("discrepancy", discrepancy["eta"])
+        if "count" in discrepancy:
+            changes.setdefault("realisations", RealisationSettings(count=discrepancy["count"]))
         return cls(priors=priors, **changes)
 
     def describe(self) -> dict:
-        out = {k: v for k, v in self.__dict__.items() if k not in ("priors", "sampler", "model")}
+        nested = ("priors", "sampler", "model", "realisations")
+        out = {k: v for k, v in self.__dict__.items() if k not in nested}
+        out["realisations"] = dict(self.realisations.__dict__)
         out["shape_pair"] = list(self.shape_pair)
         out["ridges"] = list(self.ridges)
         out["favd_range"] = None if self.favd_range is None else list(self.favd_range)

@@ -279,7 +279,7 @@ def burn_in(n_steps, tau, burn_taus) -> int:
     return min(third, int(np.ceil(burn_taus * np.max(tau))))
 
 
-def _initial_ball(log_prob, modes, ball, n_walkers, rng):
+def initial_ball(log_prob, modes, ball, n_walkers, rng):
     """Walkers drawn from N(mode, ball²·Σ), each mode's share in proportion to its
     Laplace mass (largest remainders), with finite log-probability (the spread halves for
     redrawn walkers until all are finite)."""
@@ -381,7 +381,7 @@ def run_sampler(
         else:
             centre = np.asarray(start, float)
             modes = [Mode(centre, 0.0, laplace_covariance(log_prob, centre))]
-        state = _initial_ball(log_prob, modes, s.ball, n_walkers, rng)
+        state = initial_ball(log_prob, modes, s.ball, n_walkers, rng)
     seconds = {"start": time.perf_counter() - clock}
     clock = time.perf_counter()
     history, tau, converged = [], np.full(ndim, np.inf), False
