@@ -10,11 +10,13 @@ PAI, top height (the height distribution's upper end), the footprint's tallest s
 bias and RMSE of the posterior median, and the same errors of the direct metrics of
 ``lidarinv.observe.analyse`` on the same waveforms (canopy height above the ground peak,
 gap-based cover). It also counts the shots whose chain never came within 5 of the true
-parameters' log-posterior: with ``--inverse-crime`` those are search failures.
+parameters' log-posterior: with ``--inverse-crime`` those are search failures (not counted
+under the default ``realisations`` discrepancy, whose covariance is drawn in each run;
+``--inverse-crime --discrepancy-model observed --discrepancy 0`` tests the sampler alone).
 
     python studies/recovery.py [--n 200] [--max-steps 4000] [--workers 2]
                                [--inverse-crime] [--discrepancy 0.2]
-                               [--discrepancy-model observed] [--seed 1] [--tag _NAME]
+                               [--discrepancy-model realisations] [--seed 1] [--tag _NAME]
                                [--map-search CANDIDATES STARTS SCREEN POLISH]
                                [--truth study|prior] [--mode-window 5] [--sample-gain]
                                [--ground-prior-sd M]
