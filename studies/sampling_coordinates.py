@@ -9,11 +9,12 @@ The posterior is the same in all of them; what changes is how fast the ensemble 
 it. τ is estimated per physical parameter and per derived quantity (mean height, crown
 volume, LAI) after the chain is mapped back to physical units, so that the numbers
 compare across coordinates. Settings as in the speed study's ``10-free`` configuration
-(one core, BLAS threads pinned to 1). The wall time a run to 50 τ would take is
+(one core, BLAS threads pinned to 1), with the default discrepancy (the simulated
+covariance since it was added; ``--discrepancy-model observed`` for the per-bin one). The wall time a run to 50 τ would take is
 estimated from the largest τ and the measured cost per step.
 
     python studies/sampling_coordinates.py [--n 6] [--steps 8000] [--coordinates LABEL ...]
-                                           [--tag _NAME]
+                                           [--discrepancy-model realisations] [--tag _NAME]
 
 Writes studies/output/sampling_coordinates[_TAG]/summary.json and tau.png.
 """
@@ -38,6 +39,8 @@ import numpy as np  # noqa: E402
 from inversion_speed import CONFIGURATIONS  # noqa: E402  (studies/ is the script's folder)
 
 from lidarinv.inference import InversionSettings, build_problem  # noqa: E402
+from lidarinv.inference.discrepancy import DISCREPANCY_MODELS  # noqa: E402
+from lidarinv.inference.invert import prepare_problem  # noqa: E402
 from lidarinv.inference.posterior import BLOB_NAMES  # noqa: E402
 from lidarinv.inference.sampling import run_sampler  # noqa: E402
 from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
@@ -71,11 +74,10 @@ def physical_tau(problem, run, burn):
 
 
 def run_shot(obs, settings, seed):
-    problem = build_problem(obs, settings)
+    rng = np.random.default_rng(seed)
+    problem, centre, _ = prepare_problem(obs, settings, rng)
     start = time.perf_counter()
-    run = run_sampler(
-        problem.log_posterior, problem.space, np.random.default_rng(seed), settings.sampler
-    )
+    run = run_sampler(problem.log_posterior, problem.space, rng, settings.sampler, start=centre)
     seconds = time.perf_counter() - start
     steps = run.chain.shape[0]
     tau = physical_tau(problem, run, steps // 4)
@@ -115,10 +117,15 @@ def main():
     parser.add_argument("--steps", type=int, default=8000)
     parser.add_argument("--seed", type=int, default=11)
     parser.add_argument("--coordinates", nargs="+", default=list(COORDINATES), choices=COORDINATES)
+    parser.add_argument(
+        "--discrepancy-model",
+        default=InversionSettings().discrepancy_model,
+        choices=sorted(DISCREPANCY_MODELS),
+    )
     parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
-    base = replace(InversionSettings(), **TEN_FREE)
+    base = replace(InversionSettings(discrepancy_model=args.discrepancy_model), **TEN_FREE)
     # a fixed length: τ is compared at equal cost, not at convergence
     base = replace(base, sampler=replace(base.sampler, max_steps=args.steps, tau_multiple=1e9))
     shots, skipped, i = [], [], 0
@@ -146,6 +153,7 @@ def main():
     summary = {
         "steps": args.steps,
         "n": args.n,
+        "discrepancy_model": args.discrepancy_model,
         "median": medians,
         "shots": shots,
         "skipped": skipped,

@@ -142,6 +142,7 @@ def test_cli_invert_example_writes_posterior_and_plots(tmp_path, capsys):
     text = capsys.readouterr().out
     assert code == 0, text
     assert "top_height" in text and "NOT CONVERGED" in text
+    assert "MAP search and discrepancy simulation" in text  # the default discrepancy
     assert InversionResult.load(out, name="shot_gedi-mixed").samples.shape[1] == 13
     assert len(list((tmp_path / "plots").glob("*.png"))) == 3
 

@@ -55,17 +55,30 @@ def invert_shot(
         return _invert(observation, settings, rng, progress, backend_path)
 
 
-def _invert(observation, settings, rng, progress, backend_path) -> InversionResult:
+def prepare_problem(observation: Observation, settings: InversionSettings | None, rng):
+    """The posterior :func:`invert_shot` samples: :func:`.problem.build_problem`, then the
+    simulated discrepancy covariance (:mod:`.realisations`) where the settings ask for it
+    and it can apply. Returns the problem, the sampler's start (unbounded; None for the
+    MAP search) and a dict: ``seconds`` and ``map_converged`` of the simulation, if run,
+    and ``notes`` (flags for the result)."""
     problem = build_problem(observation, settings)
-    start, simulated, notes = None, None, []
+    start, report = None, {"notes": []}
     if problem.settings.discrepancy_model == SIMULATED:
         obstacle = covariance_obstacle(problem.window, problem.settings.shot_factor)
         if obstacle is None:
             problem, start, simulated = with_realisation_covariance(
                 problem, rng, problem.settings.realisations
             )
+            report.update(simulated)
+            if not simulated["map_converged"]:
+                report["notes"].append("MAP optimiser did not report convergence")
         else:
-            notes.append(f"per-bin discrepancy used instead of realisations: {obstacle}")
+            report["notes"].append(f"per-bin discrepancy used instead of realisations: {obstacle}")
+    return problem, start, report
+
+
+def _invert(observation, settings, rng, progress, backend_path) -> InversionResult:
+    problem, start, report = prepare_problem(observation, settings, rng)
     backend = None
     if backend_path is not None:
         backend = emcee.backends.HDFBackend(str(backend_path), name=f"shot_{observation.shot_id}")
@@ -79,11 +92,9 @@ def _invert(observation, settings, rng, progress, backend_path) -> InversionResu
         start=start,
         coordinates=problem.space.signature(),
     )
-    run.flags.extend(notes)
-    if simulated is not None:
-        run.seconds["discrepancy"] = simulated["seconds"]
-        if not simulated["map_converged"]:
-            run.flags.append("MAP optimiser did not report convergence")
+    run.flags.extend(report["notes"])
+    if "seconds" in report:
+        run.seconds["discrepancy"] = report["seconds"]
     return collect_result(problem, run, rng)
 
 

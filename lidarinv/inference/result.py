@@ -118,10 +118,14 @@ class InversionResult:
             f"{'converged' if self.converged else 'NOT CONVERGED'}"
         )
         if "seconds" in d:
-            lines.append(
-                f"time: start (MAP search) {d['seconds']['start']:.1f} s, "
-                f"sampling {d['seconds']['sampling']:.1f} s"
-            )
+            seconds = d["seconds"]
+            start = f"start (MAP search) {seconds['start']:.1f} s"
+            if "discrepancy" in seconds:  # the MAP search ran in the simulation stage
+                start = (
+                    f"MAP search and discrepancy simulation {seconds['discrepancy']:.1f} s, "
+                    f"start {seconds['start']:.1f} s"
+                )
+            lines.append(f"time: {start}, sampling {seconds['sampling']:.1f} s")
         lines += [f"warning: {flag}" for flag in self.flags]
         return "\n".join(lines)
 
