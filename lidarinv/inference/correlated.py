@@ -73,8 +73,9 @@ class Rotation:
             raise ValueError("the discrepancy covariance holds NaN or infinite values")
         if not np.allclose(covariance, covariance.T, rtol=1e-10, atol=0.0):
             raise ValueError("the discrepancy covariance is not symmetric")
-        if not np.all(data.exact):
-            raise ValueError("a discrepancy covariance needs every bin exactly recorded")
+        obstacle = covariance_obstacle(data, 0.0)
+        if obstacle is not None:
+            raise ValueError(f"a discrepancy covariance cannot be used: {obstacle}")
         diagonal = np.diag(covariance)
         if diagonal.min() < -1e-8 * np.abs(diagonal).max():
             raise ValueError("the discrepancy covariance is not positive semi-definite")

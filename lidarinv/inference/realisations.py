@@ -42,7 +42,7 @@ class RealisationSettings:
     Parameters
     ----------
     count : int
-        Explicit realisations K, one per parameter draw (each about 15 ms for GEDI).
+        Explicit realisations K, one per parameter draw (each 15–25 ms for GEDI).
     shrinkage : float
         γ ∈ [0, 1], the weight of the diagonal in C = (1 − γ)·S + γ·diag(S).
     ball : float
