@@ -47,10 +47,7 @@ def _random_covariance(bins, rng, rank=12, scale=20.0):
 
 
 def _with_covariance(problem, covariance):
-    post = problem.log_posterior
-    return LogPosterior(
-        post.space, post.mapping, post.model, post.data, fixed_discrepancy=covariance
-    )
+    return problem.log_posterior.with_fixed_discrepancy(covariance)
 
 
 def _truth_rows(problem, shot, rng, n=3):

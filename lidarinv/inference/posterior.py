@@ -139,6 +139,20 @@ class LogPosterior:
     def ndim(self) -> int:
         return self.space.ndim
 
+    def with_fixed_discrepancy(self, fixed_discrepancy) -> "LogPosterior":
+        """The same posterior with another fixed discrepancy: a variance per bin or a
+        covariance between bins (DN²)."""
+        return LogPosterior(
+            self.space,
+            self.mapping,
+            self.model,
+            self.data,
+            self.shot_factor,
+            self.discrepancy,
+            self.favd_range,
+            fixed_discrepancy,
+        )
+
     def evaluate(self, x, keep_signal=False) -> Evaluation:
         """Log-prior, log-likelihood, log-posterior and blobs of physical rows x (n, ndim).
 

@@ -122,16 +122,6 @@ def with_realisation_covariance(problem, rng, settings: RealisationSettings | No
     draws = initial_ball(log_prob, [mode], settings.ball, settings.count, rng)
     x, _ = space.from_unbounded(draws)
     residuals = realisation_residuals(pilot, problem.instrument, x, rng, settings.plot_diameters)
-    covariance = discrepancy_covariance(residuals, settings.shrinkage)
-    post = LogPosterior(
-        pilot.space,
-        pilot.mapping,
-        pilot.model,
-        pilot.data,
-        pilot.shot_factor,
-        pilot.discrepancy,
-        pilot.favd_range,
-        covariance,
-    )
+    post = pilot.with_fixed_discrepancy(discrepancy_covariance(residuals, settings.shrinkage))
     report = {"seconds": time.perf_counter() - clock, "map_converged": estimate.converged}
     return replace(problem, log_posterior=post), estimate.u, report
