@@ -2,7 +2,8 @@
 
 The same GEDI-like synthetic shots (explicit random stands) are sampled for a fixed number
 of steps in each set of ridge-straightening coordinates of
-:mod:`lidarinv.inference.coordinates` (``none``, ``cover-pai``, ``cover-pai+crown-base``),
+:mod:`lidarinv.inference.coordinates` (``none``, ``cover-pai``, ``cover-pai+crown-base``,
+``cover-pai+ground-centroid``, ``all`` three),
 with the bounded priors mapped to the real line by the default logistic map, and in
 ``cover-pai/probit`` with the normal CDF instead.
 The posterior is the same in all of them; what changes is how fast the ensemble crosses
@@ -14,7 +15,8 @@ covariance since it was added; ``--discrepancy-model observed`` for the per-bin 
 estimated from the largest τ and the measured cost per step.
 
     python studies/sampling_coordinates.py [--n 6] [--steps 8000] [--coordinates LABEL ...]
-                                           [--discrepancy-model realisations] [--tag _NAME]
+                                           [--discrepancy-model realisations] [--walkers 32]
+                                           [--tag _NAME]
 
 Writes studies/output/sampling_coordinates[_TAG]/summary.json and tau.png.
 """
@@ -38,7 +40,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from inversion_speed import CONFIGURATIONS  # noqa: E402  (studies/ is the script's folder)
 
-from lidarinv.inference import InversionSettings, build_problem  # noqa: E402
+from lidarinv.inference import InversionSettings, SamplerSettings, build_problem  # noqa: E402
 from lidarinv.inference.discrepancy import DISCREPANCY_MODELS  # noqa: E402
 from lidarinv.inference.invert import prepare_problem  # noqa: E402
 from lidarinv.inference.posterior import BLOB_NAMES  # noqa: E402
@@ -51,6 +53,8 @@ COORDINATES = {
     "none": {"ridges": ()},
     "cover-pai": {"ridges": ("cover-pai",)},
     "cover-pai+crown-base": {"ridges": ("cover-pai", "crown-base")},
+    "cover-pai+ground-centroid": {"ridges": ("cover-pai", "ground-centroid")},
+    "all": {"ridges": ("cover-pai", "crown-base", "ground-centroid")},
     "cover-pai/probit": {"ridges": ("cover-pai",), "unbounded": "probit"},
 }
 
@@ -122,12 +126,18 @@ def main():
         default=InversionSettings().discrepancy_model,
         choices=sorted(DISCREPANCY_MODELS),
     )
+    parser.add_argument("--walkers", type=int, default=SamplerSettings().n_walkers)
     parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     base = replace(InversionSettings(discrepancy_model=args.discrepancy_model), **TEN_FREE)
     # a fixed length: τ is compared at equal cost, not at convergence
-    base = replace(base, sampler=replace(base.sampler, max_steps=args.steps, tau_multiple=1e9))
+    base = replace(
+        base,
+        sampler=replace(
+            base.sampler, max_steps=args.steps, tau_multiple=1e9, n_walkers=args.walkers
+        ),
+    )
     shots, skipped, i = [], [], 0
     while len(shots) < args.n:
         obs = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng, shot_id=i)
@@ -152,6 +162,7 @@ def main():
     }
     summary = {
         "steps": args.steps,
+        "walkers": args.walkers,
         "n": args.n,
         "discrepancy_model": args.discrepancy_model,
         "median": medians,

@@ -1,4 +1,5 @@
-"""The crown-base sampling coordinate: exact inverse, exact Jacobian, prior unchanged."""
+"""Sampling coordinates (crown base, ground centroid): exact inverses, exact Jacobians,
+priors unchanged."""
 
 import numpy as np
 import pytest
@@ -66,7 +67,8 @@ def test_crown_base_uses_a_fixed_height_and_can_be_turned_off(nuisance_priors):
     x[:, sd] = np.minimum(x[:, sd], 10.0)
     u = fixed_top.to_unbounded(x)
     np.testing.assert_allclose(np.exp(u[:, r]), (1.0 - x[:, r]) * (25.0 - 2.0 * x[:, sd]))
-    per_parameter = default_space(nuisance_priors)  # crown-base is opt-in
+    assert "crown-base" in default_space(nuisance_priors).signature()  # on by default
+    per_parameter = default_space(nuisance_priors, ridges=("cover-pai",))
     assert "crown-base" not in per_parameter.signature()
     r = per_parameter.names.index("crown_length_ratio")
     x = per_parameter.sample_prior(np.random.default_rng(7), 5)
@@ -77,3 +79,81 @@ def test_crown_base_uses_a_fixed_height_and_can_be_turned_off(nuisance_priors):
     assert "crown-base" not in fixed_ratio.signature()
     with pytest.raises(ValueError, match="unknown sampling coordinates"):
         default_space(nuisance_priors, ridges=("crown-tip",))
+
+
+@pytest.mark.parametrize(("lai", "height", "ratio"), [(0.4, 0.5, 1.5), (2.5, 2.8, 0.6), (1e-6, 1.0, 3.0)])
+def test_understory_centroid_is_the_first_moment_of_the_return(lai, height, ratio):
+    """Against quadrature of the convention's profile: ρv·dP over the layer, ρg·P(0) at 0."""
+    slope = coordinates.INTERCEPTION_SLOPE
+    gap = lambda z: np.exp(-slope * lai * (height - z) / height)  # noqa: E731
+    z = np.linspace(0.0, height, 200_001)
+    canopy = ratio * np.gradient(gap(z), z)  # ρv/ρg times dP/dz
+    moment = np.trapezoid(z * canopy, z)
+    total = np.trapezoid(canopy, z) + gap(0.0)
+    expected = moment / total
+    got = coordinates.understory_centroid(lai, height, ratio)
+    assert got == pytest.approx(expected, rel=1e-6, abs=1e-12)
+    assert 0.0 < got < height
+    assert coordinates.understory_centroid(0.0, height, ratio) == 0.0
+
+
+CENTROID = ("cover-pai", "crown-base", "ground-centroid")
+
+
+def test_space_samples_the_ground_centroid_with_exact_jacobian(nuisance_priors):
+    """Round trip, and log|det ∂x/∂u| of all three coordinates against finite differences."""
+    space = default_space(nuisance_priors, ridges=CENTROID)
+    assert "ground-centroid" in space.signature()
+    g, lai, height, ratio = (
+        space.names.index(k)
+        for k in ("ground_elevation", "understory_lai", "understory_height", "rho_ratio")
+    )
+    x = space.sample_prior(np.random.default_rng(8), 200)
+    u = space.to_unbounded(x)
+    x, u = x[np.isfinite(u).all(axis=1)][:20], u[np.isfinite(u).all(axis=1)][:20]
+    centroid = x[:, g] + coordinates.understory_centroid(x[:, lai], x[:, height], x[:, ratio])
+    plain = default_space(nuisance_priors, ridges=("cover-pai", "crown-base"))
+    assert not np.allclose(u[:, g], plain.to_unbounded(x)[:, g])
+    # the ground column holds the centroid, on the ground prior's map widened by 3 m
+    prior = nuisance_priors["ground_elevation"]
+    widened = -1.0 + (centroid + 1.0) * 2.0 / 5.0
+    np.testing.assert_allclose(u[:, g], prior.to_unbounded(widened), rtol=1e-10)
+    back, log_jac = space.from_unbounded(u)
+    np.testing.assert_allclose(back, x, rtol=1e-10, atol=1e-12)
+    step = 1e-6
+    for row in range(5):
+        jacobian = np.empty((space.ndim, space.ndim))
+        for j in range(space.ndim):
+            du = np.zeros(space.ndim)
+            du[j] = step
+            up, down = space.from_unbounded(u[row] + du)[0], space.from_unbounded(u[row] - du)[0]
+            jacobian[:, j] = (up[0] - down[0]) / (2 * step)
+        assert np.linalg.slogdet(jacobian)[1] == pytest.approx(log_jac[row], abs=1e-5)
+
+
+def test_ground_centroid_reaches_the_whole_ground_prior(nuisance_priors):
+    """The top of the ground prior under the tallest, densest understory maps to a finite
+    coordinate; below the prior's floor the prior is −inf, not an error."""
+    space = default_space(nuisance_priors, ridges=CENTROID)
+    names = space.names
+    x = space.sample_prior(np.random.default_rng(9), 1)
+    x[0, names.index("ground_elevation")] = 1.0 - 1e-9  # the prior's upper bound is 1 m
+    x[0, names.index("understory_lai")] = 3.0
+    x[0, names.index("understory_height")] = 3.0 - 1e-9
+    x[0, names.index("rho_ratio")] = 4.9
+    assert np.isfinite(space.to_unbounded(x)[0, names.index("ground_elevation")])
+    u = space.to_unbounded(x)
+    u[0, names.index("ground_elevation")] = -40.0  # centroid at the floor, ground below it
+    low, _ = space.from_unbounded(u)
+    assert low[0, names.index("ground_elevation")] < -1.0
+    assert space.log_prior(low)[0] == -np.inf
+
+
+def test_ground_centroid_needs_an_understory(nuisance_priors):
+    space = default_space(nuisance_priors, ridges=CENTROID)
+    bare = space.with_changes({"understory_lai": {"fixed": 0.0}})
+    assert "ground-centroid" not in bare.signature()
+    fixed_ground = space.with_changes({"ground_elevation": {"fixed": 0.0}})
+    assert "ground-centroid" not in fixed_ground.signature()
+    assert "ground-centroid" in default_space(nuisance_priors).signature()  # on by default
+    assert "ground-centroid" not in default_space(nuisance_priors, ridges=BOTH).signature()

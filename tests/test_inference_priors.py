@@ -223,7 +223,9 @@ def test_parameter_space_under_the_probit_map(nuisance_priors):
     the map, so one sampled under the other map is not resumed into."""
     logit_space = default_space(nuisance_priors)
     probit_space = default_space(nuisance_priors, unbounded="probit")
-    x = logit_space.sample_prior(np.random.default_rng(4), 40)
+    x = logit_space.sample_prior(np.random.default_rng(4), 100)
+    top, sd = (x[:, logit_space.names.index(k)] for k in ("top_height", "height_sd"))
+    x = x[top > 2.0 * sd][:40]  # a stand (the crown-base coordinate needs a mean height)
     u = probit_space.to_unbounded(x)
     back, _ = probit_space.from_unbounded(u)
     np.testing.assert_allclose(back, x, rtol=1e-10)

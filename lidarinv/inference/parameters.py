@@ -118,6 +118,9 @@ class ParameterSpace:
         - ``crown-base``: the log crown-base height of the mean tree instead of
           ``crown_length_ratio``, when that is free and ``top_height`` and ``height_sd``
           are in the space (free or fixed).
+        - ``ground-centroid``: the centroid of the ground-plus-understory return instead
+          of ``ground_elevation``, when that is free and the understory is in the space
+          with a non-zero LAI (free or fixed).
     unbounded : str
         Map of each bounded prior to the real line, from :data:`.priors.UNBOUNDED_MAPS`.
     """
@@ -155,6 +158,7 @@ class ParameterSpace:
             and set(needed) <= set(names)
             else None
         )
+        self._centroid = self._centroid_map() if "ground-centroid" in self.ridges else None
 
     @property
     def ndim(self) -> int:
@@ -165,6 +169,8 @@ class ParameterSpace:
         joint = "cover-pai-joint-v1" if self._joint is not None else "per-parameter"
         if self._base is not None:
             joint += ", crown-base-v1"
+        if self._centroid is not None:
+            joint += ", ground-centroid-v1"
         priors = ";".join(f"{p.name}:{p.prior.describe()}" for p in self.free)
         marginalised = "".join(f"; marginalised {name}" for name in self.marginalised)
         return f"lidarinv {self.unbounded} transforms, {joint}; {priors}{marginalised}"
@@ -204,10 +210,20 @@ class ParameterSpace:
         if self._base is not None:
             r = self._base
             x[:, r], log_jac[:, r] = coordinates.ratio_from_crown_base(u[:, r], self._mean(x))
+        if self._centroid is not None:
+            g, lower, stretch = self._centroid
+            centroid = lower + (x[:, g] - lower) * stretch
+            x[:, g] = centroid - self._understory_centroid(x)
+            log_jac[:, g] += np.log(stretch)
         return x, log_jac.sum(axis=1)
 
     def to_unbounded(self, x):
         x = np.atleast_2d(np.asarray(x, float))
+        if self._centroid is not None:
+            g, lower, stretch = self._centroid
+            centroid = x[:, g] + self._understory_centroid(x)
+            x = x.copy()
+            x[:, g] = lower + (centroid - lower) / stretch
         u = self._priors.to_unbounded(x)
         if self._joint is not None:
             c, a = self._joint
@@ -217,13 +233,38 @@ class ParameterSpace:
             u[:, r] = coordinates.crown_base_from_ratio(x[:, r], self._mean(x))
         return u
 
+    def _column(self, x, name):
+        """Values of parameter ``name`` in rows x, free or fixed."""
+        return x[:, self.names.index(name)] if name in self.names else self.by_name[name].fixed
+
     def _mean(self, x):
         """Mean tree height (m) of rows x: top − TOP_SDS·sd, free or fixed."""
-        v = {
-            name: x[:, self.names.index(name)] if name in self.names else self.by_name[name].fixed
-            for name in ("top_height", "height_sd")
-        }
-        return v["top_height"] - TOP_SDS * v["height_sd"]
+        return self._column(x, "top_height") - TOP_SDS * self._column(x, "height_sd")
+
+    def _understory_centroid(self, x):
+        """Height (m) of the ground-plus-understory centroid above the ground, rows x."""
+        lai, height, ratio = (
+            self._column(x, name) for name in ("understory_lai", "understory_height", "rho_ratio")
+        )
+        return coordinates.understory_centroid(lai, height, ratio)
+
+    def _centroid_map(self):
+        """(column, lower, stretch) of the ground-centroid coordinate, or None where it does
+        not apply: the ground prior's range [lower, upper] widened to upper + the tallest
+        understory, so that c = zg + f(…) covers it (f ≤ hu)."""
+        needed = ("understory_lai", "understory_height", "rho_ratio")
+        if "ground_elevation" not in self.names or not set(needed) <= set(self.by_name):
+            return None
+        lai = self.by_name["understory_lai"]
+        if lai.fixed is not None and lai.fixed <= 0:
+            return None
+        height = self.by_name["understory_height"]
+        tallest = height.fixed if height.fixed is not None else height.prior.form().upper
+        ground = self.by_name["ground_elevation"].prior.form()
+        if ground.log_scale or not np.isfinite(ground.upper - ground.lower):
+            return None
+        span = ground.upper - ground.lower
+        return self.names.index("ground_elevation"), ground.lower, (span + tallest) / span
 
     def sample_prior(self, rng, size) -> np.ndarray:
         return np.column_stack([p.prior.sample(rng, size) for p in self.free])

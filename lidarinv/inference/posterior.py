@@ -256,6 +256,7 @@ class LogPosterior:
         with np.errstate(all="ignore"):
             x, log_jac = self.space.from_unbounded(u)
         terms = self.evaluate(x)
-        log_post = terms.log_posterior + log_jac
+        with np.errstate(invalid="ignore"):  # −inf prior plus an infinite Jacobian
+            log_post = terms.log_posterior + log_jac
         log_post = np.where(np.isfinite(log_post), log_post, -np.inf)
         return np.column_stack([log_post, terms.blobs])

@@ -85,9 +85,9 @@ class InversionSettings:
         Crown shapes mixed by ``cone_fraction``.
     ridges : tuple of str
         Ridge-straightening sampling coordinates (:mod:`.coordinates`; the posterior is
-        the same, the chains mix faster): ``("cover-pai",)`` by default, ``("cover-pai",
-        "crown-base")`` adds the crown-base coordinate, ``()`` samples each parameter on
-        its own.
+        the same, the chains mix faster): all three of
+        :data:`.coordinates.RIDGE_COORDINATES` by default, ``()`` samples each parameter
+        on its own.
     unbounded : str
         Map of the bounded priors to the real line the sampler moves on
         (:data:`.priors.UNBOUNDED_MAPS`): ``"logit"`` (logistic CDF, the default) or
