@@ -81,11 +81,13 @@ def test_crown_base_uses_a_fixed_height_and_can_be_turned_off(nuisance_priors):
         default_space(nuisance_priors, ridges=("crown-tip",))
 
 
-@pytest.mark.parametrize(("lai", "height", "ratio"), [(0.4, 0.5, 1.5), (2.5, 2.8, 0.6), (1e-6, 1.0, 3.0)])
+@pytest.mark.parametrize(
+    ("lai", "height", "ratio"), [(0.4, 0.5, 1.5), (2.5, 2.8, 0.6), (1e-6, 1.0, 3.0)]
+)
 def test_understory_centroid_is_the_first_moment_of_the_return(lai, height, ratio):
     """Against quadrature of the convention's profile: ρv·dP over the layer, ρg·P(0) at 0."""
     slope = coordinates.INTERCEPTION_SLOPE
-    gap = lambda z: np.exp(-slope * lai * (height - z) / height)  # noqa: E731
+    gap = lambda z: np.exp(-slope * lai * (height - z) / height)
     z = np.linspace(0.0, height, 200_001)
     canopy = ratio * np.gradient(gap(z), z)  # ρv/ρg times dP/dz
     moment = np.trapezoid(z * canopy, z)
