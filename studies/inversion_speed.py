@@ -12,6 +12,7 @@ parameters.
     python studies/inversion_speed.py [--n 3] [--max-steps 20000] [--config default 10-free]
                                       [--sample-gain] [--unbounded logit|probit] [--tag _NAME]
                                       [--discrepancy-model observed|realisations]
+                                      [--walkers 32] [--moves de=0.7 de-snooker=0.1 …]
 
 Writes studies/output/inversion_speed[_TAG]/summary.json.
 """
@@ -29,7 +30,12 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from lidarinv.inference import InversionSettings, build_problem, invert_shot  # noqa: E402
+from lidarinv.inference import (  # noqa: E402
+    InversionSettings,
+    SamplerSettings,
+    build_problem,
+    invert_shot,
+)
 from lidarinv.inference.discrepancy import DISCREPANCY_MODELS  # noqa: E402
 from lidarinv.inference.priors import DEFAULT_UNBOUNDED, UNBOUNDED_MAPS  # noqa: E402
 from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
@@ -97,6 +103,26 @@ def _run(settings, n, seed, name):
     return rows
 
 
+def add_sampler_options(parser):
+    """--walkers and --moves, shared with the sampling-coordinates study."""
+    parser.add_argument("--walkers", type=int, default=SamplerSettings().n_walkers)
+    parser.add_argument(
+        "--moves",
+        nargs="+",
+        metavar="NAME=WEIGHT",
+        help="move mixture (names from lidarinv.inference.sampling.MOVES); default the sampler's",
+    )
+
+
+def sampler_changes(args) -> dict:
+    """SamplerSettings changes from the options of :func:`add_sampler_options`."""
+    changes = {"n_walkers": args.walkers}
+    if args.moves:
+        pairs = (move.split("=") for move in args.moves)
+        changes["moves"] = tuple((name, float(weight)) for name, weight in pairs)
+    return changes
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=3)
@@ -114,6 +140,7 @@ def main():
         default=InversionSettings().discrepancy_model,
         choices=sorted(DISCREPANCY_MODELS),
     )
+    add_sampler_options(parser)
     parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     summary = {"target_seconds": TARGET_SECONDS, "load_average": os.getloadavg()}
@@ -126,7 +153,8 @@ def main():
             ),
             **CONFIGURATIONS[name],
         )
-        settings = replace(settings, sampler=replace(settings.sampler, max_steps=args.max_steps))
+        sampler = replace(settings.sampler, max_steps=args.max_steps, **sampler_changes(args))
+        settings = replace(settings, sampler=sampler)
         rows = _run(settings, args.n, args.seed, name)
         summary[name] = {
             "median_seconds": float(np.median([r["seconds"] for r in rows])),
@@ -136,6 +164,8 @@ def main():
     summary["gain_marginalised"] = not args.sample_gain
     summary["unbounded"] = args.unbounded
     summary["discrepancy_model"] = args.discrepancy_model
+    summary["walkers"] = args.walkers
+    summary["moves"] = [list(m) for m in sampler.moves]
     folder = Path(__file__).parent / "output" / ("inversion_speed" + args.tag)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "summary.json").write_text(json.dumps(summary, indent=1))

@@ -16,6 +16,7 @@ estimated from the largest τ and the measured cost per step.
 
     python studies/sampling_coordinates.py [--n 6] [--steps 8000] [--coordinates LABEL ...]
                                            [--discrepancy-model realisations] [--walkers 32]
+                                           [--moves de=0.7 de-snooker=0.1 stretch=0.2]
                                            [--tag _NAME]
 
 Writes studies/output/sampling_coordinates[_TAG]/summary.json and tau.png.
@@ -38,9 +39,13 @@ import matplotlib  # noqa: E402
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from inversion_speed import CONFIGURATIONS  # noqa: E402  (studies/ is the script's folder)
+from inversion_speed import (  # noqa: E402  (studies/ is the script's folder)
+    CONFIGURATIONS,
+    add_sampler_options,
+    sampler_changes,
+)
 
-from lidarinv.inference import InversionSettings, SamplerSettings, build_problem  # noqa: E402
+from lidarinv.inference import InversionSettings, build_problem  # noqa: E402
 from lidarinv.inference.discrepancy import DISCREPANCY_MODELS  # noqa: E402
 from lidarinv.inference.invert import prepare_problem  # noqa: E402
 from lidarinv.inference.posterior import BLOB_NAMES  # noqa: E402
@@ -126,18 +131,14 @@ def main():
         default=InversionSettings().discrepancy_model,
         choices=sorted(DISCREPANCY_MODELS),
     )
-    parser.add_argument("--walkers", type=int, default=SamplerSettings().n_walkers)
+    add_sampler_options(parser)
     parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     base = replace(InversionSettings(discrepancy_model=args.discrepancy_model), **TEN_FREE)
     # a fixed length: τ is compared at equal cost, not at convergence
-    base = replace(
-        base,
-        sampler=replace(
-            base.sampler, max_steps=args.steps, tau_multiple=1e9, n_walkers=args.walkers
-        ),
-    )
+    sampler = replace(base.sampler, max_steps=args.steps, tau_multiple=1e9, **sampler_changes(args))
+    base = replace(base, sampler=sampler)
     shots, skipped, i = [], [], 0
     while len(shots) < args.n:
         obs = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng, shot_id=i)
@@ -163,6 +164,7 @@ def main():
     summary = {
         "steps": args.steps,
         "walkers": args.walkers,
+        "moves": [list(m) for m in base.sampler.moves],
         "n": args.n,
         "discrepancy_model": args.discrepancy_model,
         "median": medians,

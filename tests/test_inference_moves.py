@@ -1,0 +1,46 @@
+"""The ensemble-t move leaves the target invariant, on targets known in closed form."""
+
+import emcee
+import numpy as np
+import pytest
+
+from lidarinv.inference.moves import EnsembleStudentMove
+
+
+def _gamma_target(x):
+    """Independent Gamma(shape 2, scale 1) per column: mean 2, variance 2, skewed."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log_p = np.sum(np.log(x) - x, axis=1)
+    return np.where(np.all(x > 0, axis=1), log_p, -np.inf)
+
+
+@pytest.mark.parametrize("dof", [4.0, 50.0])
+def test_samples_a_skewed_target_with_its_hastings_factor(dof):
+    """The proposal is a symmetric t around the ensemble mean, the target skewed: a wrong
+    Hastings factor pulls the samples off it (checked: without the factor the ensemble
+    collapses, mean 1.2 and variance 0.14 at ν = 4)."""
+    rng = np.random.default_rng(2)
+    ndim, walkers = 3, 32
+    sampler = emcee.EnsembleSampler(
+        walkers, ndim, _gamma_target, vectorize=True, moves=EnsembleStudentMove(dof=dof)
+    )
+    sampler.random_state = np.random.RandomState(5).get_state()
+    sampler.run_mcmc(rng.gamma(2.0, size=(walkers, ndim)), 3000, progress=False)
+    x = sampler.get_chain(discard=300, flat=True)
+    tau = np.max(emcee.autocorr.integrated_time(sampler.get_chain(discard=300), tol=0))
+    assert tau < 10  # nearly independent draws
+    np.testing.assert_allclose(x.mean(axis=0), 2.0, atol=0.08)
+    np.testing.assert_allclose(x.var(axis=0), 2.0, rtol=0.1)
+    skew = np.mean((x - x.mean(axis=0)) ** 3, axis=0) / x.var(axis=0) ** 1.5
+    np.testing.assert_allclose(skew, np.sqrt(2.0), atol=0.25)  # Gamma(2): 2/√2
+
+
+def test_too_few_walkers_for_a_covariance_leave_them_in_place():
+    move = EnsembleStudentMove()
+    current = np.arange(12.0).reshape(4, 3)
+    others = [np.ones((3, 3))]  # 3 walkers cannot span 3 dimensions
+    proposal, log_factor = move.get_proposal(current, others, np.random.RandomState(0))
+    np.testing.assert_array_equal(proposal, current)
+    np.testing.assert_array_equal(log_factor, 0.0)
+    with pytest.raises(ValueError, match="positive"):
+        EnsembleStudentMove(dof=0.0)
