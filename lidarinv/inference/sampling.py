@@ -31,7 +31,8 @@ class SamplerSettings:
     max_steps : int
         Cap on steps; a run that hits it unconverged is flagged.
     check_every : int
-        Steps between convergence checks, at least.
+        Steps between convergence checks, at least (100: with τ of a few tens, 50 τ is
+        soon reached, and sparser checks overshoot it).
     check_growth : float
         Steps between checks as a fraction of the chain so far, when that is more than
         ``check_every`` (each check costs time in proportion to the chain's length, so
