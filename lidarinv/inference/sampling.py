@@ -405,7 +405,9 @@ def run_sampler(
         bar.update(sampler.iteration - bar.n)
         discard = burn_in(sampler.iteration, tau, s.burn_taus)
         thin = max(1, int(np.min(tau) / s.tau_resolution)) if np.all(np.isfinite(tau)) else 1
-        new_tau = sampler.get_autocorr_time(tol=0, quiet=True, discard=discard, thin=thin)
+        # NaN where a walker has not moved in the window (a τ not yet known)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            new_tau = sampler.get_autocorr_time(tol=0, quiet=True, discard=discard, thin=thin)
         history.append((sampler.iteration, new_tau.copy()))
         stable = np.all(np.abs(new_tau - tau) < s.tau_tolerance * new_tau)
         long_enough = np.all(sampler.iteration - discard > s.tau_multiple * new_tau)
