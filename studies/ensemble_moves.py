@@ -8,8 +8,9 @@ mixture and walker count: the largest τ (steps), the acceptance fraction, and t
 relative error of the sampled variances (a check that every mixture samples the target).
 
     python studies/ensemble_moves.py [--ndim 9] [--steps 6000] [--walkers 32 64 96]
+                                     [--tag _NAME]
 
-Writes studies/output/ensemble_moves/summary.json and tau.png.
+Writes studies/output/ensemble_moves[_TAG]/summary.json and tau.png.
 """
 
 import argparse
@@ -70,6 +71,7 @@ def main():
     parser.add_argument("--steps", type=int, default=6000)
     parser.add_argument("--walkers", type=int, nargs="+", default=[32, 64, 96])
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     log_prob, covariance = gaussian_target(args.ndim, np.random.default_rng(args.seed))
     rows = []
@@ -79,7 +81,7 @@ def main():
             row.update(run(mixture, walkers, args.steps, log_prob, covariance, args.seed + 1))
             rows.append(row)
             print(row, flush=True)
-    folder = Path(__file__).parent / "output" / "ensemble_moves"
+    folder = Path(__file__).parent / "output" / ("ensemble_moves" + args.tag)
     folder.mkdir(parents=True, exist_ok=True)
     summary = {
         "ndim": args.ndim,

@@ -261,7 +261,7 @@ class ParameterSpace:
         height = self.by_name["understory_height"]
         tallest = height.fixed if height.fixed is not None else height.prior.form().upper
         ground = self.by_name["ground_elevation"].prior.form()
-        if ground.log_scale or not np.isfinite(ground.upper - ground.lower):
+        if ground.log_scale or not np.isfinite(ground.upper - ground.lower + tallest):
             return None
         span = ground.upper - ground.lower
         return self.names.index("ground_elevation"), ground.lower, (span + tallest) / span
