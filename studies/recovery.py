@@ -34,7 +34,7 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
-from dataclasses import replace  # noqa: E402
+from dataclasses import asdict, replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -358,7 +358,7 @@ def main():
             "truth": args.truth,
             "discrepancy": args.discrepancy,
             "discrepancy_model": args.discrepancy_model,
-            "realisations": dict(settings.realisations.__dict__),
+            "realisations": asdict(settings.realisations),
             "map_search": {k: getattr(settings.sampler, k) for k in MAP_SEARCH_FIELDS},
             "mode_window": args.mode_window,
             "gain_marginalised": not args.sample_gain,

@@ -1,6 +1,6 @@
 """Turn one observation into an inversion problem: window, priors, model and posterior."""
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -142,7 +142,7 @@ class InversionSettings:
     def describe(self) -> dict:
         nested = ("priors", "sampler", "model", "realisations")
         out = {k: v for k, v in self.__dict__.items() if k not in nested}
-        out["realisations"] = dict(self.realisations.__dict__)
+        out["realisations"] = asdict(self.realisations)
         out["shape_pair"] = list(self.shape_pair)
         out["ridges"] = list(self.ridges)
         out["favd_range"] = None if self.favd_range is None else list(self.favd_range)

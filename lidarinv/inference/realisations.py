@@ -27,12 +27,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from forward.engine import WaveformSimulator
+from forward.engine import AccuracySettings, WaveformSimulator
 from forward.expected_vectors import params_from_vector
 from forward.realise import realise, scene_extras
 
 from .posterior import LogPosterior
 from .sampling import Mode, find_map, initial_ball
+
+#: The explicit engine's quadrature for the discrepancy (see ``RealisationSettings``).
+DISCREPANCY_QUADRATURE = AccuracySettings(radial_nodes=2, angular_nodes=4)
 
 
 @dataclass(frozen=True)
@@ -50,12 +53,17 @@ class RealisationSettings:
     plot_diameters : float
         Side of the square plot each stand is realised on, in footprint diameters
         (1/e² diameters, 4σf); the footprint sits at its centre.
+    accuracy : forward.engine.AccuracySettings
+        Quadrature of the explicit engine. 8 columns a crown (2 rings × 4 angles) instead
+        of the engine's 32: on three GEDI shots C moved by 3.5–10 % (Frobenius norm),
+        against 14–44 % for another set of 64 realisations, in a third of the time.
     """
 
     count: int = 64
     shrinkage: float = 0.3
     ball: float = 1.0
     plot_diameters: float = 3.0
+    accuracy: AccuracySettings = DISCREPANCY_QUADRATURE
 
     def __post_init__(self):
         if self.count < 2:
@@ -67,12 +75,14 @@ class RealisationSettings:
 
 
 def realisation_residuals(
-    log_posterior: LogPosterior, instrument, x, rng, plot_diameters=3.0
+    log_posterior: LogPosterior, instrument, x, rng, plot_diameters=3.0, accuracy=None
 ) -> np.ndarray:
     """dᵢ = aᵢ·(W_explicit − W_expected) (DN), (n, bins), one explicit stand per row of
     physical parameters ``x`` (n, ndim) with a finite log-posterior.
 
-    aᵢ is the row's gain, or its least-squares fit where the gain is integrated out.
+    aᵢ is the row's gain, or its least-squares fit where the gain is integrated out;
+    ``accuracy`` (:class:`forward.engine.AccuracySettings`) sets the explicit engine's
+    quadrature, its own default if None.
     """
     post = log_posterior
     terms = post.evaluate(x, keep_signal=True)
@@ -84,7 +94,7 @@ def realisation_residuals(
     full = post.model.full_vectors(vectors)
     side = plot_diameters * instrument.footprint_diameter_m
     centre = (side / 2, side / 2)
-    simulator = WaveformSimulator(instrument)
+    simulator = WaveformSimulator(instrument, accuracy)
     axis = post.data.axis
     residuals = np.empty((x.shape[0], axis.size))
     for i, row in enumerate(full):
@@ -121,7 +131,9 @@ def with_realisation_covariance(problem, rng, settings: RealisationSettings | No
     mode = Mode(estimate.u, estimate.log_prob, estimate.covariance)
     draws = initial_ball(log_prob, [mode], settings.ball, settings.count, rng)
     x, _ = space.from_unbounded(draws)
-    residuals = realisation_residuals(pilot, problem.instrument, x, rng, settings.plot_diameters)
+    residuals = realisation_residuals(
+        pilot, problem.instrument, x, rng, settings.plot_diameters, settings.accuracy
+    )
     post = pilot.with_fixed_discrepancy(discrepancy_covariance(residuals, settings.shrinkage))
     report = {"seconds": time.perf_counter() - clock, "map_converged": estimate.converged}
     return replace(problem, log_posterior=post), estimate.u, report
