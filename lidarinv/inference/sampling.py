@@ -80,7 +80,7 @@ class SamplerSettings:
         draws where the posterior is close to Gaussian in the sampler's coordinates. On
         the speed study's six 10-free GEDI shots the five that converge took 15–25 s
         (largest τ 53–110) with 32 walkers and DE/snooker/stretch 0.7/0.1/0.2, and
-        11–21 s (τ 25–84) with 64 walkers and DE/ensemble-t 0.5/0.5.
+        10–24 s (τ 25–85) with 64 walkers and DE/ensemble-t 0.5/0.5 (README, "Speed").
     """
 
     n_walkers: int = 64
