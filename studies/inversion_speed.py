@@ -12,7 +12,7 @@ parameters.
     python studies/inversion_speed.py [--n 3] [--max-steps 20000] [--config default 10-free]
                                       [--sample-gain] [--unbounded logit|probit] [--tag _NAME]
                                       [--discrepancy-model observed|realisations]
-                                      [--walkers 32] [--moves de=0.7 de-snooker=0.1 …]
+                                      [--walkers 64] [--moves de=0.5 ensemble-t=0.5]
 
 Writes studies/output/inversion_speed[_TAG]/summary.json.
 """

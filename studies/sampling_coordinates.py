@@ -15,8 +15,8 @@ covariance since it was added; ``--discrepancy-model observed`` for the per-bin 
 estimated from the largest τ and the measured cost per step.
 
     python studies/sampling_coordinates.py [--n 6] [--steps 8000] [--coordinates LABEL ...]
-                                           [--discrepancy-model realisations] [--walkers 32]
-                                           [--moves de=0.7 de-snooker=0.1 stretch=0.2]
+                                           [--discrepancy-model realisations] [--walkers 64]
+                                           [--moves de=0.5 ensemble-t=0.5]
                                            [--tag _NAME]
 
 Writes studies/output/sampling_coordinates[_TAG]/summary.json and tau.png.

@@ -112,7 +112,8 @@ def test_space_samples_the_ground_centroid_with_exact_jacobian(nuisance_priors):
     )
     x = space.sample_prior(np.random.default_rng(8), 200)
     u = space.to_unbounded(x)
-    x, u = x[np.isfinite(u).all(axis=1)][:20], u[np.isfinite(u).all(axis=1)][:20]
+    finite = np.isfinite(u).all(axis=1)
+    x, u = x[finite][:20], u[finite][:20]
     centroid = x[:, g] + coordinates.understory_centroid(x[:, lai], x[:, height], x[:, ratio])
     plain = default_space(nuisance_priors, ridges=("cover-pai", "crown-base"))
     assert not np.allclose(u[:, g], plain.to_unbounded(x)[:, g])
