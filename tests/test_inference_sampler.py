@@ -8,7 +8,7 @@ from forward.stand_params import StandParams
 from lidarinv.inference import InversionSettings, build_problem
 from lidarinv.inference.parameters import Parameter, ParameterSpace
 from lidarinv.inference.priors import Uniform
-from lidarinv.inference.sampling import SamplerSettings, find_map, run_sampler
+from lidarinv.inference.sampling import BatchedSampler, SamplerSettings, find_map, run_sampler
 from lidarinv.inference.stand_mapping import TOP_SDS
 from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot
 
@@ -78,6 +78,28 @@ def test_blobs_follow_the_chain(toy_run):
     x, _ = toy.space.from_unbounded(run.chain[-1])
     blobs = run.blobs.reshape(run.blobs.shape[0], run.blobs.shape[1], -1)
     np.testing.assert_allclose(blobs[-1, :, 0], x.sum(axis=1))
+
+
+def test_batched_sampler_walks_the_chain_emcee_walks():
+    rng = np.random.default_rng(11)
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
+    toy = LinearGaussianToy(space, rng)
+    start = 0.1 * rng.standard_normal((16, 3))
+    chains = []
+    for cls, extra in ((BatchedSampler, {}), (emcee.EnsembleSampler, {"blobs_dtype": float})):
+        sampler = cls(16, 3, toy, vectorize=True, **extra)
+        sampler.random_state = np.random.RandomState(4).get_state()
+        sampler.run_mcmc(start, 200)
+        chains.append((sampler.get_chain(), sampler.get_log_prob(), sampler.get_blobs()))
+    for ours, emcees in zip(*chains):
+        np.testing.assert_array_equal(ours, emcees)
+
+
+def test_batched_sampler_refuses_a_nan_log_probability():
+    nan_at_origin = lambda u: np.column_stack([np.where(u[:, 0] > 0, 0.0, np.nan), u[:, 0]])
+    sampler = BatchedSampler(4, 1, nan_at_origin, vectorize=True)
+    with pytest.raises(ValueError, match="returned NaN"):
+        sampler.run_mcmc(np.linspace(-1.0, 1.0, 4)[:, None], 1)
 
 
 def test_map_and_laplace_covariance_match_the_closed_form():

@@ -105,34 +105,6 @@ def linear_fit(signal, baseline, noise_sigma, fixed, data, unit=None) -> np.ndar
     )
 
 
-@njit(cache=True, fastmath=True)
-def _rotate(signal, kept, rotated, basis):
-    n = signal.shape[0]
-    k0, m = kept.size, rotated.size
-    out = np.zeros((n, k0 + m))
-    for r in range(n):
-        for a in range(k0):
-            out[r, a] = signal[r, kept[a]]
-        for a in range(m):
-            value = signal[r, rotated[a]]
-            for k in range(m):  # contiguous in basis and out: vectorised
-                out[r, k0 + k] += value * basis[a, k]
-    return out
-
-
-def rotate(signal, kept, rotated, basis) -> np.ndarray:
-    """Rows of ``signal`` (n, bins): the ``kept`` bins as they are, then the ``rotated``
-    bins times ``basis`` (:mod:`.correlated`). Single-threaded on purpose: a threaded
-    BLAS product of this size, sharing the cores with other work, stalled the sampler
-    (15 ms instead of 0.07 ms for 16 rows of 233 bins)."""
-    return _rotate(
-        np.ascontiguousarray(signal, dtype=np.float64),
-        np.ascontiguousarray(kept, dtype=np.intp),
-        np.ascontiguousarray(rotated, dtype=np.intp),
-        np.ascontiguousarray(basis, dtype=np.float64),
-    )
-
-
 @njit(cache=True)
 def _log_prior_form(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
     """log p(x) of a prior in the common form of :class:`.priors.PriorForm`."""

@@ -45,17 +45,21 @@ class EnsembleStudentMove(RedBlueMove):
         if n <= ndim:
             return stay
         mean = others.mean(axis=0)
+        centred = others - mean
         try:
-            chol = np.linalg.cholesky(np.cov(others, rowvar=False)) * self.scale
+            chol = np.linalg.cholesky(centred.T @ centred / (n - 1)) * self.scale
         except np.linalg.LinAlgError:
             return stay
         normal = random.standard_normal((len(s), ndim))
         mixing = random.chisquare(self.dof, len(s)) / self.dof
         proposal = mean + (normal / np.sqrt(mixing)[:, None]) @ chol.T
-        return proposal, self._log_density(s, mean, chol) - self._log_density(proposal, mean, chol)
+        # the proposals' whitened distances are known: |normal|² / mixing
+        whitened = solve_triangular(chol, (s - mean).T, lower=True, check_finite=False)
+        log_q_current = self._log_density(np.sum(whitened**2, axis=0), ndim)
+        log_q_proposal = self._log_density(np.sum(normal**2, axis=1) / mixing, ndim)
+        return proposal, log_q_current - log_q_proposal
 
-    def _log_density(self, x, mean, chol):
-        """log q(x) up to a constant (the same for every x)."""
-        whitened = solve_triangular(chol, (x - mean).T, lower=True)
-        distance = np.sum(whitened**2, axis=0)
-        return -0.5 * (self.dof + mean.size) * np.log1p(distance / self.dof)
+    def _log_density(self, distance, ndim):
+        """log q up to a constant (the same for every point), from the squared whitened
+        distance to the mean."""
+        return -0.5 * (self.dof + ndim) * np.log1p(distance / self.dof)
