@@ -317,8 +317,9 @@ class ExpectedWaveformModel:
             pulse = self.instrument.pulse.pdf(self.heights[None, first:last] - g[:, None])
             ground[:, first:last] = (full[:, _I["ground_reflectance"]] * gap0)[:, None] * dz * pulse
         canopy *= full[:, _I["canopy_reflectance"]][:, None]
-        canopy[~valid] = 0.0
-        ground[~valid] = 0.0
+        if not valid.all():
+            canopy[~valid] = 0.0
+            ground[~valid] = 0.0
         return ExpectedWaveforms(canopy + ground, canopy, ground, gap0, valid)
 
     def gap(self, theta, z) -> np.ndarray:
@@ -380,18 +381,26 @@ class ExpectedWaveformModel:
         hu = np.where(understory, v[:, _I["understory_height"]], 0.0)
         span = np.max(np.ceil((np.maximum(top, hu) - z0) / step))
         nodes = max(2, int(min(span, reach)) + 1)
+        lai, top_u = v[:, _I["understory_lai"]], v[:, _I["understory_height"]]
+        scale_u = np.divide(
+            self._kappa * lai, top_u, out=np.zeros_like(lai), where=understory & (top_u != 0)
+        )
+        operator = self._grid_operator(nodes)
+        densities = self._cohort_densities(v, cohorts) if self.backend == "numba" else None
+        if densities:  # one compiled call from the depth grid to the samples
+            return expected_numba.grid_canopy(
+                densities, *self._crown_columns(v), z0, step, nodes, operator, shift, scale_u,
+                top_u, self.layer_height, self.heights.size, GRID_UNDERSHOOT,
+            )  # fmt: skip
         z = z0[:, None] + step * np.arange(nodes)
         np.maximum(z, 0.0, out=z)
         depth = self._tree_depth(v, z, cohorts)
-        lai, top_u = v[:, _I["understory_lai"]], v[:, _I["understory_height"]]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            scale_u = np.where(understory, self._kappa * lai / top_u, 0.0)
         assemble = (
             expected_numba.assemble_grid if self.backend == "numba" else expected_grid.assemble_grid
         )
         return assemble(
-            depth, self._grid_operator(nodes), shift, scale_u, top_u, z0, self.layer_height,
-            self.heights.size, GRID_UNDERSHOOT,
+            depth, operator, shift, scale_u, top_u, z0, self.layer_height, self.heights.size,
+            GRID_UNDERSHOOT,
         )  # fmt: skip
 
     def _grid_operator(self, nodes):
@@ -464,6 +473,35 @@ class ExpectedWaveformModel:
             gap = np.exp(-np.maximum(depth, 0.0))
         return gap
 
+    def _cohort_densities(self, v, cohorts):
+        """Per cohort with trees: its height density on each row's grid lo + step·i
+        (n, height_nodes), lo (n,), step (n,), stems (n,) and the radial nodes' weights
+        (n, J) (shape fractions times quadrature weights)."""
+        nh = self.settings.height_nodes
+        mix = v[:, self._mix_index]  # cohort 1's fractions of the model's shapes
+        out = []
+        for cohort, (weight, args, lo, hi) in enumerate(cohorts):
+            fractions = mix if cohort == 0 else self._mixes[1, self._shapes][None, :]
+            w = fractions[:, self._node_shape] * self._node_weight  # (n, J), or (1, J)
+            if not w.any():
+                continue
+            step = (hi - lo) / (nh - 1)
+            h = lo[:, None] + step[:, None] * self._unit_grid
+            pdf = self._family.fast("pdf", h, *args)
+            if w.shape[0] != v.shape[0]:  # one mix for every row (cohort 2)
+                w = np.repeat(w, v.shape[0], axis=0)
+            out.append((pdf, lo, step, v[:, _I["density"]] * weight, w))
+        return out
+
+    def _crown_columns(self, v):
+        """What the compiled depth kernels take besides the densities: r0, r1, the crown
+        length ratio, the nodes' chord ends s_lo and s_hi, κ·FAVD and the FAVD ratios."""
+        return (
+            v[:, _I["crown_radius_intercept"]], v[:, _I["crown_radius_slope"]],
+            v[:, _I["crown_length_ratio"]], self._s_lo, self._s_hi,
+            self._kappa * v[:, _I["favd"]], self._node_favd,
+        )  # fmt: skip
+
     def _understory_depth(self, v, z):
         """Optical depth of the uniform understory layer above heights z ≥ 0 (n, e)."""
         lai, hu = v[:, _I["understory_lai"], None], v[:, _I["understory_height"], None]
@@ -484,34 +522,21 @@ class ExpectedWaveformModel:
         nodes sharing a(ρ) (every node of a cone, cylinder or hemi-ellipsoid) or b(ρ) are
         summed before the read.
         """
-        nh = self.settings.height_nodes
-        c = v[:, _I["crown_length_ratio"]]
-        extinction = self._kappa * v[:, _I["favd"]]
-        r0, r1 = v[:, _I["crown_radius_intercept"]], v[:, _I["crown_radius_slope"]]
-        compiled = self.backend == "numba"
-        if not compiled:
-            a = np.maximum(1.0 - c[:, None] + c[:, None] * self._s_lo, 1e-12)  # (n, J)
-            b = 1.0 - c[:, None] + c[:, None] * self._s_hi
-            ku = extinction[:, None] * self._node_favd
-        mix = v[:, self._mix_index]  # cohort 1's fractions of the model's shapes
         depth = np.zeros_like(z)
-        for cohort, (weight, args, lo, hi) in enumerate(cohorts):
-            step = (hi - lo) / (nh - 1)
-            h = lo[:, None] + step[:, None] * self._unit_grid
-            pdf = self._family.fast("pdf", h, *args)
-            fractions = mix if cohort == 0 else self._mixes[1, self._shapes][None, :]
-            w = fractions[:, self._node_shape] * self._node_weight  # (n, J), or (1, J)
-            if not np.any(w):
-                continue
-            stems = v[:, _I["density"]] * weight
-            if compiled:
-                if w.shape[0] != v.shape[0]:  # one mix for every row (cohort 2)
-                    w = np.repeat(w, v.shape[0], axis=0)
+        densities = self._cohort_densities(v, cohorts)
+        if self.backend == "numba":
+            for pdf, lo, step, stems, w in densities:
                 expected_numba.add_cohort_depth(
-                    pdf, lo, step, stems, r0, r1, c, self._s_lo, self._s_hi, extinction,
-                    self._node_favd, w, z, depth,
-                )  # fmt: skip
-                continue
+                    pdf, lo, step, stems, *self._crown_columns(v), w, z, depth
+                )
+            return depth
+        c = v[:, _I["crown_length_ratio"]]
+        a = np.maximum(1.0 - c[:, None] + c[:, None] * self._s_lo, 1e-12)  # (n, J)
+        b = 1.0 - c[:, None] + c[:, None] * self._s_hi
+        ku = self._kappa * v[:, _I["favd"], None] * self._node_favd
+        r0, r1 = v[:, _I["crown_radius_intercept"]], v[:, _I["crown_radius_slope"]]
+        for pdf, lo, step, stems, w in densities:
+            h = lo[:, None] + step[:, None] * self._unit_grid
             norm = step * tail_integrals(pdf, self._tails)[:, 0]
             radius = r0[:, None] + r1[:, None] * h
             scale = (np.pi / 1e4) * stems / np.where(norm > 0, norm, 1.0)

@@ -6,9 +6,11 @@ cohort's height density scaled to crown area, the discounted tails S(h_i; r) by 
 backward recurrence S_i = e^{−rδ}·S_{i+1} + C_i (C_i the fourth-order cell rule of
 :func:`forward.expected_tables.tail_matrix` applied to g(h)·e^{−r(h − h_i)}), the tables
 A_j, B_j with their exact slopes, and cubic Hermite reads at z/b_j and z/a_j, with the
-exact continuation below the grid. Then the grid path's assembly of the samples
-(:meth:`~forward.expected.ExpectedWaveformModel._canopy_grid`): grid operator, uniform
-understory, whole-bin shift. Both agree with the numpy path to rounding; with a few rows
+exact continuation below the grid (below every chord, z < a_j·lo, the two continuations
+sum to a constant: no exponential per height). Then the grid path's assembly of the
+samples (:meth:`~forward.expected.ExpectedWaveformModel._canopy_grid`): grid operator,
+uniform understory, whole-bin shift; :func:`grid_canopy` runs the depth grid, the depth
+and the assembly in one call. All agree with the numpy path to rounding; with a few rows
 per call, as a sampler makes them, they save the numpy path's per-call overhead, which
 exceeds its arithmetic. :data:`AVAILABLE` is False when numba cannot be imported.
 """
@@ -22,7 +24,7 @@ from .expected_tables import LAGRANGE_CUBIC, MAX_EXPONENT, WEIGHT_SERIES
 #: Whether numba is installed (it is imported, and the kernel compiled, on first use).
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
-__all__ = ["AVAILABLE", "add_cohort_depth", "assemble_grid"]
+__all__ = ["AVAILABLE", "add_cohort_depth", "assemble_grid", "grid_canopy"]
 
 
 def _series(m, x):
@@ -112,8 +114,14 @@ def _add_tree_depth(g, lo, step, a, b, ku, w, z, depth):
             b_lo, a_lo = b[r, j] * lo[r], a[r, j] * lo[r]
             inv_b, inv_a = 1.0 / (b[r, j] * h_step), 1.0 / (a[r, j] * h_step)
             start, last = lo[r] / h_step, nodes - 1.0
+            # below a_j·lo ≤ b_j·lo both continuations apply, and their exponentials cancel:
+            # every crown's whole chord lies above z
+            below_every_chord = a_val[0] + b_val[0] + s_b[0] * (1.0 - below_d)
             for k in range(z.shape[1]):
                 zk = z[r, k]
+                if zk < a_lo:
+                    depth[r, k] += weight * below_every_chord
+                    continue
                 # A_j at t = z/b_j; below the grid A(t) = A(lo) + S_b(lo)(1 − e^{−κu(b·lo − z)})
                 p = zk * inv_b - start
                 if zk < b_lo:
@@ -232,6 +240,31 @@ def _assemble_grid(
     return out, gap0, redo
 
 
+def _grid_canopy(
+    pdf, lo, step, stems, w, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, z0, grid_step,
+    nodes, matrix, first, shift, interp, layers_to_samples, under_scale, under_top, layer, bins,
+    undershoot,
+):  # fmt: skip
+    """The grid path in one call: each row's depth grid z0 + k·``grid_step`` (clipped at the
+    ground), the optical depth of every cohort (``pdf``, ``lo``, ``step``, ``stems`` and
+    ``w`` stacked by cohort) as :func:`_cohort_depth` adds it, then :func:`_assemble_grid`."""
+    n = z0.size
+    z = np.empty((n, nodes))
+    for r in range(n):
+        for k in range(nodes):
+            z[r, k] = max(z0[r] + grid_step * k, 0.0)
+    depth = np.zeros((n, nodes))
+    for c in range(pdf.shape[0]):
+        _cohort_depth(
+            pdf[c], lo[c], step[c], stems[c], r0, r1, ratio, s_lo, s_hi, extinction,
+            node_favd, w[c], z, depth,
+        )  # fmt: skip
+    return _assemble_grid(
+        depth, matrix, first, shift, interp, layers_to_samples, under_scale, under_top, z0,
+        layer, bins, undershoot,
+    )  # fmt: skip
+
+
 _COMPILED = {}
 
 
@@ -241,13 +274,17 @@ def _kernels():
         from numba import njit
 
         global _series, _cell_weights, _discounted, _hermite, _add_tree_depth
+        global _cohort_depth, _assemble_grid
         _series = njit(cache=True)(_series)
         _cell_weights = njit(cache=True)(_cell_weights)
         _discounted = njit(cache=True)(_discounted)
         _hermite = njit(cache=True)(_hermite)
         _add_tree_depth = njit(cache=True)(_add_tree_depth)
-        _COMPILED["cohort_depth"] = njit(cache=True)(_cohort_depth)
-        _COMPILED["assemble_grid"] = njit(cache=True)(_assemble_grid)
+        _cohort_depth = njit(cache=True)(_cohort_depth)
+        _assemble_grid = njit(cache=True)(_assemble_grid)
+        _COMPILED["cohort_depth"] = _cohort_depth
+        _COMPILED["assemble_grid"] = _assemble_grid
+        _COMPILED["grid_canopy"] = njit(cache=True)(_grid_canopy)
     return _COMPILED
 
 
@@ -286,3 +323,22 @@ def assemble_grid(depth, operator, shift, under_scale, under_top, z0, layer, bin
         int(bins),
         float(undershoot),
     )
+
+
+def grid_canopy(
+    cohorts, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, z0, grid_step, nodes, operator,
+    shift, under_scale, under_top, layer, bins, undershoot,
+):  # fmt: skip
+    """Compiled: the grid path's canopy samples (n, ``bins``), E[P(0)] (n,) and rows to
+    recompute (n,) in one call, from the cohorts' height densities: ``cohorts`` is a list
+    of (pdf (n, nodes), lo (n,), step (n,), stems (n,), w (n, J)), one per cohort with
+    trees; the depth grid starts at ``z0`` (n,) and has ``nodes`` points ``grid_step``
+    apart. The same numbers as :func:`add_cohort_depth` then :func:`assemble_grid`."""
+    matrix, first, interp, layers_to_samples = operator
+    stacked = [np.stack([_f64(c[i]) for c in cohorts]) for i in range(5)]
+    return _kernels()["grid_canopy"](
+        *stacked, _f64(r0), _f64(r1), _f64(ratio), _f64(s_lo), _f64(s_hi), _f64(extinction),
+        _f64(node_favd), _f64(z0), float(grid_step), int(nodes), _f64(matrix), int(first),
+        np.ascontiguousarray(shift, dtype=np.int64), _f64(interp), _f64(layers_to_samples),
+        _f64(under_scale), _f64(under_top), float(layer), int(bins), float(undershoot),
+    )  # fmt: skip

@@ -85,8 +85,9 @@ def physical_rows(v, family, truncation):
     truncation : float (sd units)
         Truncation of the ``truncnorm`` family.
     """
-    ok = np.all(np.isfinite(v), axis=1)
-    v = np.where(np.isfinite(v), v, 1.0)
+    finite = np.isfinite(v)
+    ok = finite.all(axis=1)
+    v = np.where(finite, v, 1.0)
     above = (v > _LOWER) | ((v == _LOWER) & _CLOSED)
     ok &= np.all(above & (v <= _UPPER), axis=1)
     ok &= np.abs(v[:, _MIX].sum(axis=1) - 1.0) < 1e-6
