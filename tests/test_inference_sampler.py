@@ -3,12 +3,21 @@
 import emcee
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from forward.stand_params import StandParams
 from lidarinv.inference import InversionSettings, build_problem
 from lidarinv.inference.parameters import Parameter, ParameterSpace
 from lidarinv.inference.priors import Uniform
-from lidarinv.inference.sampling import BatchedSampler, SamplerSettings, find_map, run_sampler
+from lidarinv.inference.sampling import (
+    BatchedSampler,
+    SamplerSettings,
+    _may_converge,
+    burn_in,
+    find_map,
+    run_sampler,
+)
 from lidarinv.inference.stand_mapping import TOP_SDS
 from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot
 
@@ -100,6 +109,22 @@ def test_batched_sampler_refuses_a_nan_log_probability():
     sampler = BatchedSampler(4, 1, nan_at_origin, vectorize=True)
     with pytest.raises(ValueError, match="returned NaN"):
         sampler.run_mcmc(np.linspace(-1.0, 1.0, 4)[:, None], 1)
+
+
+@given(
+    tau=st.floats(1.0, 500.0),
+    spread=st.floats(0.1, 1.0),
+    change=st.floats(0.9, 1.1),
+    iteration=st.integers(10, 60_000),
+)
+def test_a_skipped_check_could_not_have_ended_the_run(tau, spread, change, iteration):
+    settings = SamplerSettings()
+    previous = np.array([tau, spread * tau])
+    new = previous * np.array([change, 1.0])
+    stable = np.all(np.abs(new - previous) < settings.tau_tolerance * new)
+    kept = iteration - burn_in(iteration, previous, settings.burn_taus)
+    if stable and np.all(kept > settings.tau_multiple * new):
+        assert _may_converge(iteration, previous, settings)
 
 
 def test_map_and_laplace_covariance_match_the_closed_form():
