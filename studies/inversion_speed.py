@@ -9,12 +9,16 @@ and the cost of one log-posterior row (of the pilot posterior, with the per-bin
 discrepancy, under ``realisations``). Target: ≤ 10 s per footprint with ~10 free
 parameters.
 
-    python studies/inversion_speed.py [--n 3] [--max-steps 20000] [--config default 10-free]
+    python studies/inversion_speed.py [--n 3] [--repeats 1] [--max-steps 20000]
+                                      [--config default 10-free]
                                       [--sample-gain] [--unbounded logit|probit] [--tag _NAME]
                                       [--discrepancy-model observed|realisations]
                                       [--walkers 64] [--moves de=0.5 ensemble-t=0.5]
 
-Writes studies/output/inversion_speed[_TAG]/summary.json.
+Each shot is inverted ``--repeats`` times with other seeds: the time to convergence
+follows the largest τ, whose estimate varies from run to run of one posterior.
+
+Writes studies/output/inversion_speed[_TAG]/summary.json and speed.png.
 """
 
 import os
@@ -60,12 +64,13 @@ def evaluation_cost(problem, rng, batch=32, repeats=20):
     return best / batch
 
 
-def _run(settings, n, seed, name):
-    """Invert the first ``n`` shots that can be analysed; each shot and its inversion
-    draw from their own generators, so the shots do not depend on the inversion."""
+def _run(settings, n, seed, name, repeats=1):
+    """Invert the first ``n`` shots that can be analysed, each ``repeats`` times with
+    other seeds (the first as with one); each shot and its inversions draw from their own
+    generators, so the shots do not depend on the inversions."""
     rows, i = [], 0
     shots = np.random.SeedSequence(seed)
-    while len(rows) < n:
+    while len({row["shot"] for row in rows}) < n:
         shot_seed, run_seed = shots.spawn(2)
         obs = synthetic_shot(
             SYNTHETIC_SHOTS["gedi-mixed"], np.random.default_rng(shot_seed), shot_id=i
@@ -76,31 +81,37 @@ def _run(settings, n, seed, name):
         except ValueError as error:  # e.g. a return that runs out of the window
             print(name, "skipped:", error, flush=True)
             continue
-        rng = np.random.default_rng(run_seed)
-        per_row = evaluation_cost(problem, rng)
-        start = time.perf_counter()
-        result = invert_shot(obs, settings, rng=rng)
-        seconds = time.perf_counter() - start
-        d = result.diagnostics
-        rows.append(
-            {
-                "shot": obs.shot_id,
-                "seconds": seconds,
-                "steps": d["n_steps"],
-                "walkers": d["n_walkers"],
-                "max_tau": float(np.max(d["tau"])),
-                "converged": result.converged,
-                "free_parameters": len(result.parameter_names),
-                "sampled_parameters": len(d["sampled"]),
-                "start_seconds": d["seconds"]["start"],
-                "discrepancy_seconds": d["seconds"].get("discrepancy", 0.0),
-                "sampling_seconds": d["seconds"]["sampling"],
-                "window_bins": int(result.axis.size),
-                "microseconds_per_evaluation": per_row * 1e6,
-            }
-        )
-        print(name, rows[-1], flush=True)
+        for repeat, seeds in enumerate([run_seed, *run_seed.spawn(repeats - 1)]):
+            rows.append(_invert_timed(obs, settings, seeds, problem if repeat == 0 else None))
+            rows[-1]["repeat"] = repeat
+            print(name, rows[-1], flush=True)
     return rows
+
+
+def _invert_timed(obs, settings, seed, problem=None) -> dict:
+    """Wall time and diagnostics of one inversion; the cost of a log-posterior row too
+    when ``problem`` is given (measured first, with the inversion's generator)."""
+    rng = np.random.default_rng(seed)
+    per_row = None if problem is None else evaluation_cost(problem, rng) * 1e6
+    start = time.perf_counter()
+    result = invert_shot(obs, settings, rng=rng)
+    seconds = time.perf_counter() - start
+    d = result.diagnostics
+    return {
+        "shot": obs.shot_id,
+        "seconds": seconds,
+        "steps": d["n_steps"],
+        "walkers": d["n_walkers"],
+        "max_tau": float(np.max(d["tau"])),
+        "converged": result.converged,
+        "free_parameters": len(result.parameter_names),
+        "sampled_parameters": len(d["sampled"]),
+        "start_seconds": d["seconds"]["start"],
+        "discrepancy_seconds": d["seconds"].get("discrepancy", 0.0),
+        "sampling_seconds": d["seconds"]["sampling"],
+        "window_bins": int(result.axis.size),
+        "microseconds_per_evaluation": per_row,
+    }
 
 
 def add_sampler_options(parser):
@@ -123,9 +134,53 @@ def sampler_changes(args) -> dict:
     return changes
 
 
+def plot_speed(summary, configurations, path):
+    """Wall time of each inversion by shot, against the target, and against its largest
+    τ (the time to convergence is about 55 τ steps)."""
+    import matplotlib
+    import matplotlib.ticker
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (by_shot, by_tau) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    for k, name in enumerate(configurations):
+        rows = summary[name]["shots"]
+        colour = f"C{k}"
+        for converged, marker in ((True, "o"), (False, "x")):
+            picked = [r for r in rows if r["converged"] == converged]
+            if not picked:
+                continue
+            label = name if converged else f"{name}, not converged"
+            shots = [r["shot"] + 0.1 * k for r in picked]
+            by_shot.scatter(shots, [r["seconds"] for r in picked], c=colour, marker=marker)
+            by_tau.scatter(
+                [r["max_tau"] for r in picked],
+                [r["seconds"] for r in picked],
+                c=colour,
+                marker=marker,
+                label=label,
+            )
+    for ax in (by_shot, by_tau):
+        ax.axhline(TARGET_SECONDS, color="k", lw=0.8, ls="--")
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.ScalarFormatter())
+        ax.set_ylabel("wall time to convergence (s, one core)")
+    by_shot.set_xlabel("shot")
+    by_tau.set_xscale("log")
+    by_tau.set_xlabel("largest integrated autocorrelation time τ (steps)")
+    by_tau.legend(fontsize=8)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=3)
+    parser.add_argument(
+        "--repeats", type=int, default=1, help="inversions of each shot, with other seeds"
+    )
     parser.add_argument("--max-steps", type=int, default=20000)
     parser.add_argument("--seed", type=int, default=5)
     parser.add_argument("--config", nargs="+", default=list(CONFIGURATIONS), choices=CONFIGURATIONS)
@@ -155,9 +210,20 @@ def main():
         )
         sampler = replace(settings.sampler, max_steps=args.max_steps, **sampler_changes(args))
         settings = replace(settings, sampler=sampler)
-        rows = _run(settings, args.n, args.seed, name)
+        rows = _run(settings, args.n, args.seed, name, args.repeats)
+        seconds = np.array([r["seconds"] for r in rows])
+        per_shot = {}
+        for r in rows:
+            per_shot.setdefault(r["shot"], []).append(r["seconds"])
         summary[name] = {
-            "median_seconds": float(np.median([r["seconds"] for r in rows])),
+            "median_seconds": float(np.median(seconds)),
+            "within_target_fraction": float(  # converged within the target
+                np.mean((seconds <= TARGET_SECONDS) & [r["converged"] for r in rows])
+            ),
+            "median_seconds_per_shot": {k: float(np.median(v)) for k, v in per_shot.items()},
+            "median_ms_per_step": float(
+                np.median([r["sampling_seconds"] / r["steps"] * 1e3 for r in rows])
+            ),
             "converged_fraction": float(np.mean([r["converged"] for r in rows])),
             "shots": rows,
         }
@@ -169,6 +235,7 @@ def main():
     folder = Path(__file__).parent / "output" / ("inversion_speed" + args.tag)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "summary.json").write_text(json.dumps(summary, indent=1))
+    plot_speed(summary, args.config, folder / "speed.png")
     brief = {
         k: {kk: vv for kk, vv in v.items() if kk != "shots"}
         for k, v in summary.items()
