@@ -72,11 +72,16 @@ def _linear_fit(signal, baseline, noise_sigma, fixed, y, unit):
     for r in range(n):
         s2 = noise_sigma[r] ** 2
         ww = wr = log_var = 0.0
+        plain = 0  # bins with noise only, whose logarithms are all the same
         for j in range(bins):
             v = s2 + fixed[j]
             ww += signal[r, j] * signal[r, j] / v
             wr += signal[r, j] * (y[j] - baseline[r] * unit[j]) / v
-            log_var += math.log(2.0 * math.pi * v)
+            if fixed[j] == 0.0:
+                plain += 1
+            else:
+                log_var += math.log(2.0 * math.pi * v)
+        log_var += plain * math.log(2.0 * math.pi * s2)
         a = wr / ww if ww > 0.0 else 0.0
         chi2 = 0.0
         for j in range(bins):  # a second pass: no cancellation between large sums
