@@ -182,6 +182,65 @@ def test_joint_cover_pai_coordinates_round_trip_with_exact_jacobian():
     assert np.all(np.isnan(coordinates.from_cover_pai(np.array([0.0, 1.0, 0.5]), 1.0)[0][:2]))
 
 
+COVER_PAI_BOUNDS = ((0.001, 0.99), (0.01, 15.0))
+
+
+def test_ridge_range_is_where_cover_and_pai_stay_in_bounds():
+    t = np.linspace(-12.0, 12.0, 240_001)
+    for s in (-6.0, -2.5, -0.5, 1.0, 1.3):
+        cover, pai, _ = coordinates.to_cover_pai(np.full_like(t, s), t)
+        (c_lo, c_hi), (p_lo, p_hi) = COVER_PAI_BOUNDS
+        inside = (cover >= c_lo) & (cover <= c_hi) & (pai >= p_lo) & (pai <= p_hi)
+        low, high = coordinates.ridge_range(s, *COVER_PAI_BOUNDS)
+        np.testing.assert_allclose([low, high], [t[inside].min(), t[inside].max()], atol=2e-4)
+    # more interception than cover 0.99 with PAI 15 allows, or less than cover 0.001 with
+    # PAI 0.01: no t is left
+    for s in (np.log(5.0), -7.0):
+        assert np.all(np.isnan(coordinates.ridge_range(s, *COVER_PAI_BOUNDS)))
+
+
+def test_bounded_ridge_coordinates_round_trip_with_exact_jacobian():
+    rng = np.random.default_rng(6)
+    (c_lo, c_hi), (p_lo, p_hi) = COVER_PAI_BOUNDS
+    cover = rng.uniform(c_lo, c_hi, 300)
+    pai = np.exp(rng.uniform(np.log(p_lo), np.log(p_hi), 300))
+    s, v = coordinates.from_cover_pai_bounded(cover, pai, *COVER_PAI_BOUNDS)
+    back_cover, back_pai, log_jac = coordinates.to_cover_pai_bounded(s, v, *COVER_PAI_BOUNDS)
+    np.testing.assert_allclose(back_cover, cover, rtol=1e-11)
+    np.testing.assert_allclose(back_pai, pai, rtol=1e-11)
+    h = 1e-6
+    to = lambda ds, dv: coordinates.to_cover_pai_bounded(s + ds, v + dv, *COVER_PAI_BOUNDS)
+    d = {
+        (k, i): (to(h * (i == 0), h * (i == 1))[k] - to(-h * (i == 0), -h * (i == 1))[k]) / (2 * h)
+        for k in (0, 1) for i in (0, 1)
+    }  # fmt: skip
+    det = d[0, 0] * d[1, 1] - d[0, 1] * d[1, 0]
+    np.testing.assert_allclose(log_jac, np.log(np.abs(det)), atol=1e-5)
+    # every ridge position of a feasible s lands inside the bounds, walls included
+    s_any, v_any = rng.uniform(-8.0, 2.0, 4000), rng.normal(0.0, 15.0, 4000)
+    cover, pai, _ = coordinates.to_cover_pai_bounded(s_any, v_any, *COVER_PAI_BOUNDS)
+    feasible = np.isfinite(cover)
+    assert feasible.mean() > 0.8
+    assert np.all((cover[feasible] >= c_lo * (1 - 1e-12)) & (cover[feasible] <= c_hi + 1e-12))
+    assert np.all((pai[feasible] >= p_lo * (1 - 1e-9)) & (pai[feasible] <= p_hi * (1 + 1e-9)))
+
+
+def test_bounded_ridge_coordinates_keep_the_cover_pai_prior(nuisance_priors):
+    """The prior carried to (s, v) still integrates to one."""
+    s, v = np.linspace(-14.0, 5.0, 1500), np.linspace(-40.0, 40.0, 1500)
+    grid_s, grid_v = np.meshgrid(s, v, indexing="ij")
+    cover, pai, log_jac = coordinates.to_cover_pai_bounded(grid_s, grid_v, *COVER_PAI_BOUNDS)
+    space = default_space(nuisance_priors)
+    with np.errstate(invalid="ignore"):
+        log_density = (
+            space.by_name["cover"].prior.log_pdf(cover) + space.by_name["pai"].prior.log_pdf(pai)
+            + log_jac
+        )  # fmt: skip
+    density = np.exp(np.where(np.isfinite(log_density), log_density, -np.inf))
+    total = np.trapezoid(np.trapezoid(density, v, axis=1), s)
+    assert total == pytest.approx(1.0, abs=1e-3)
+
+
 def test_joint_coordinates_keep_the_cover_pai_prior(nuisance_priors):
     """The prior on cover and PAI, carried to (s, t) with the Jacobian, still integrates
     to one: only the sampling coordinates change, not the posterior."""
@@ -207,8 +266,10 @@ def test_parameter_space_samples_cover_and_pai_jointly_only_when_both_are_free(n
     back, _ = space.from_unbounded(u)
     np.testing.assert_allclose(back, x, rtol=1e-10)
     c, a = space.names.index("cover"), space.names.index("pai")
+    bounds = ((0.001, 0.99), (0.01, 15.0))  # the default priors' supports
     np.testing.assert_allclose(
-        u[:, [c, a]], np.column_stack(coordinates.from_cover_pai(x[:, c], x[:, a]))
+        u[:, [c, a]],
+        np.column_stack(coordinates.from_cover_pai_bounded(x[:, c], x[:, a], *bounds)),
     )
     per_parameter = default_space(nuisance_priors).with_changes({"cover": {"fixed": 0.5}})
     x = per_parameter.sample_prior(rng, 5)

@@ -103,6 +103,17 @@ DEFAULT_FIXED = {"crown_radius_slope": 0.1}
 DEFAULT_RHO_RATIO_PRIOR = TruncatedLogNormal(1.5, 0.3, 0.3, 5.0)
 
 
+#: Cover within this of 1 is left out of the joint cover-PAI coordinates' range (a prior
+#: reaching cover 1 would leave the ridge unbounded; the mass left out is ~1e-9).
+COVER_MARGIN = 1e-9
+
+
+def _support(parameter, upper=np.inf) -> tuple:
+    """[lower, min(upper, the prior's upper)] of a parameter's prior."""
+    form = parameter.prior.form()
+    return float(form.lower), float(min(form.upper, upper))
+
+
 class ParameterSpace:
     """An ordered set of :class:`Parameter`; the free ones form the sampled vector.
 
@@ -146,7 +157,12 @@ class ParameterSpace:
         self._priors = PriorTable([p.prior for p in self.free], unbounded)
         both = "cover" in self.names and "pai" in self.names
         self._joint = (
-            (self.names.index("cover"), self.names.index("pai"))
+            (
+                self.names.index("cover"),
+                self.names.index("pai"),
+                _support(self.by_name["cover"], upper=1.0 - COVER_MARGIN),
+                _support(self.by_name["pai"]),
+            )
             if both and "cover-pai" in self.ridges
             else None
         )
@@ -166,7 +182,7 @@ class ParameterSpace:
 
     def signature(self) -> str:
         """The sampled coordinates, for labelling stored chains: free names and transforms."""
-        joint = "cover-pai-joint-v1" if self._joint is not None else "per-parameter"
+        joint = "cover-pai-joint-v2" if self._joint is not None else "per-parameter"
         if self._base is not None:
             joint += ", crown-base-v1"
         if self._centroid is not None:
@@ -204,8 +220,10 @@ class ParameterSpace:
         u = np.atleast_2d(np.asarray(u, float))
         x, log_jac = self._priors.from_unbounded(u)
         if self._joint is not None:
-            c, a = self._joint
-            x[:, c], x[:, a], log_jac[:, c] = coordinates.to_cover_pai(u[:, c], u[:, a])
+            c, a, cover_bounds, pai_bounds = self._joint
+            x[:, c], x[:, a], log_jac[:, c] = coordinates.to_cover_pai_bounded(
+                u[:, c], u[:, a], cover_bounds, pai_bounds
+            )
             log_jac[:, a] = 0.0
         if self._base is not None:
             r = self._base
@@ -226,8 +244,10 @@ class ParameterSpace:
             x[:, g] = lower + (centroid - lower) / stretch
         u = self._priors.to_unbounded(x)
         if self._joint is not None:
-            c, a = self._joint
-            u[:, c], u[:, a] = coordinates.from_cover_pai(x[:, c], x[:, a])
+            c, a, cover_bounds, pai_bounds = self._joint
+            u[:, c], u[:, a] = coordinates.from_cover_pai_bounded(
+                x[:, c], x[:, a], cover_bounds, pai_bounds
+            )
         if self._base is not None:
             r = self._base
             u[:, r] = coordinates.crown_base_from_ratio(x[:, r], self._mean(x))
