@@ -90,19 +90,24 @@ def ridge_range(s, cover_bounds, pai_bounds, slope=INTERCEPTION_SLOPE):
     rises: each bound cuts t once. PAI = p at Lc = u/a with u = ak + W₀(−ak·e^{−ak}),
     k = p/Y (W₀ the principal branch of Lambert's W), which exists for ak > 1.
     """
-    y = np.exp(np.asarray(s, float))
+    y = np.exp(np.array(s, float, ndmin=1))
     (c_lo, c_hi), (p_lo, p_hi) = cover_bounds, pai_bounds
-    x_lo, x_hi = -np.log1p(-c_lo), -np.log1p(-c_hi)
     with np.errstate(divide="ignore", invalid="ignore"):
-        # cover ≤ c_hi: X ≤ x_hi; cover ≥ c_lo: X ≥ x_lo (no bound where Y ≥ x_lo)
-        low = np.log(-np.log1p(-y / x_hi) / slope)
-        high = np.where(y < x_lo, np.log(-np.log1p(-y / x_lo) / slope), np.inf)
-        high = np.minimum(high, _log_lc_at_pai(p_hi / y, slope))
-        low = np.maximum(
-            low, np.where(p_lo / y > 1 / slope, _log_lc_at_pai(p_lo / y, slope), -np.inf)
-        )
-    empty = ~(low < high)
-    return np.where(empty, np.nan, low), np.where(empty, np.nan, high)
+        # cover ≤ c_hi: X ≤ −ln(1 − c_hi); PAI ≤ p_hi
+        low = np.log(np.log1p(y / np.log1p(-c_hi)) / -slope)
+        high = _log_lc_at_pai(p_hi / y, slope)
+        # cover ≥ c_lo (X ≥ x_lo) and PAI ≥ p_lo bind only where Y < x_lo or Y < a·p_lo
+        x_lo = -np.log1p(-c_lo)
+        sparse = y < max(x_lo, slope * p_lo)
+        if sparse.any():
+            ys = y[sparse]
+            below = np.where(ys < x_lo, np.log(-np.log1p(-ys / x_lo) / slope), np.inf)
+            above = np.where(slope * p_lo > ys, _log_lc_at_pai(p_lo / ys, slope), -np.inf)
+            high[sparse] = np.minimum(high[sparse], below)
+            low[sparse] = np.maximum(low[sparse], above)
+        empty = ~(low < high)
+    low[empty] = high[empty] = np.nan
+    return low.reshape(np.shape(s)), high.reshape(np.shape(s))
 
 
 def _log_lc_at_pai(k, slope):
