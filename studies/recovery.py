@@ -21,6 +21,7 @@ under the default ``realisations`` discrepancy, whose covariance is drawn in eac
                                [--truth study|prior] [--mode-window 5] [--sample-gain]
                                [--ground-prior-sd M]
                                [--realisations COUNT SHRINKAGE BALL]
+                               [--priors studies/study_priors.toml]
 
 Writes studies/output/recovery[_inverse_crime]/{summary.json,shots.json,*.png}.
 """
@@ -319,13 +320,23 @@ def main():
         metavar=("CANDIDATES", "STARTS", "SCREEN", "POLISH"),
         help="MAP search settings (SamplerSettings); 512 4 400 4 is the former search",
     )
+    parser.add_argument(
+        "--priors",
+        type=Path,
+        help="priors TOML (as `lidarinv invert --priors`); e.g. studies/study_priors.toml, "
+        "the ranges the study's stands are drawn from",
+    )
     args = parser.parse_args()
-    settings = InversionSettings(
+    choices = dict(
         discrepancy=args.discrepancy,
         discrepancy_model=args.discrepancy_model,
         marginalise_gain=not args.sample_gain,
         ground_prior_sd_m=args.ground_prior_sd,
     )
+    if args.priors is None:
+        settings = InversionSettings(**choices)
+    else:
+        settings = InversionSettings.from_priors_file(args.priors, **choices)
     if args.realisations:
         count, shrinkage, ball = args.realisations
         simulated = RealisationSettings(count=int(count), shrinkage=shrinkage, ball=ball)
@@ -363,6 +374,8 @@ def main():
             "mode_window": args.mode_window,
             "gain_marginalised": not args.sample_gain,
             "ground_prior_sd_m": args.ground_prior_sd,
+            "priors_file": None if args.priors is None else str(args.priors),
+            "prior_overrides": settings.describe()["priors"],
             "wall_seconds": time.perf_counter() - start,
             "workers": args.workers,
         }
