@@ -333,6 +333,8 @@ def main():
         marginalise_gain=not args.sample_gain,
         ground_prior_sd_m=args.ground_prior_sd,
     )
+    if args.ground_prior_sd is None:  # the default, or a priors file's [ground] table
+        del choices["ground_prior_sd_m"]
     if args.priors is None:
         settings = InversionSettings(**choices)
     else:
