@@ -525,10 +525,9 @@ class ExpectedWaveformModel:
         depth = np.zeros_like(z)
         densities = self._cohort_densities(v, cohorts)
         if self.backend == "numba":
+            columns = self._crown_columns(v)
             for pdf, lo, step, stems, w in densities:
-                expected_numba.add_cohort_depth(
-                    pdf, lo, step, stems, *self._crown_columns(v), w, z, depth
-                )
+                expected_numba.add_cohort_depth(pdf, lo, step, stems, *columns, w, z, depth)
             return depth
         c = v[:, _I["crown_length_ratio"]]
         a = np.maximum(1.0 - c[:, None] + c[:, None] * self._s_lo, 1e-12)  # (n, J)
