@@ -54,13 +54,19 @@ understory multiplies E[P] by its own transmission; the ground pulse is ρg·E[P
 pulse(z_j − g), for a Gaussian or a measured pulse alike. Slopes are not modelled here.
 """
 
-from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
 
 from . import expected_depth, expected_grid, expected_numba
 from .crowns import CROWN_SHAPES, SHAPE_NAMES
+from .expected_settings import (
+    CONVERGED,  # noqa: F401  (re-exported)
+    GRID_UNDERSHOOT,
+    ExpectedWaveforms,
+    ModelSettings,
+    engine_oversampling,
+)
 from .expected_tables import (
     catmull_rom,
     grid_operator,
@@ -72,70 +78,6 @@ from .expected_vectors import DEFAULT_FREE, MIX_FIELDS, VECTOR_FIELDS, physical_
 from .expected_vectors import FIELD_INDEX as _I
 from .pulse import layer_kernel
 from .stand_params import HEIGHT_DISTRIBUTIONS, StandParams
-
-
-@dataclass(frozen=True)
-class ModelSettings:
-    """Numerical settings of the expected model.
-
-    Parameters
-    ----------
-    radial_nodes : int
-        Gauss–Legendre nodes in ρ² across the crown disc.
-    height_nodes : int
-        Grid points of the height tables.
-    tail : float
-        Height-distribution probability left out in each tail of the grid.
-    oversampling : int or None
-        Fine layers per bin; ``None`` uses the explicit engine's rule (layers ≤ σz/4).
-    depth_nodes : int or None
-        ``None``: evaluate the tree optical depth at every fine-layer edge. An integer:
-        evaluate E[P] on about that many heights from 0 to the template's tallest tree
-        (a step of whole fine layers) and interpolate to the edges by Catmull–Rom: much
-        cheaper, and smooth because the depth is already averaged over the heights.
-    max_elements : int
-        Rows are processed in chunks so that no work array exceeds this many elements.
-    backend : str
-        ``"numba"`` (compiled tree depth; needs numba), ``"numpy"``, or ``"auto"``: numba
-        when it can be imported. Both give the same results to rounding.
-    """
-
-    radial_nodes: int = 6
-    height_nodes: int = 24
-    tail: float = 1e-6
-    oversampling: int | None = None
-    depth_nodes: int | None = 32
-    max_elements: int = 4_000_000
-    backend: str = "auto"
-
-
-#: Largest undershoot below zero accepted from the fast grid path, relative to the row's
-#: canopy energy; rows beyond it are recomputed on the per-edge path.
-GRID_UNDERSHOOT = 1e-5
-
-#: Settings taken as converged (the reference of the benchmark and the convergence test).
-CONVERGED = ModelSettings(radial_nodes=48, height_nodes=1024, tail=1e-9, depth_nodes=None)
-
-
-@dataclass(frozen=True)
-class ExpectedWaveforms:
-    """Output of :meth:`ExpectedWaveformModel.evaluate` (arrays of shape (n, n_bins)).
-
-    ``samples = canopy + ground``; rows with ``valid`` False hold zeros.
-    ``gap_ground`` (n,) is E[P(0)].
-    """
-
-    samples: np.ndarray
-    canopy: np.ndarray
-    ground: np.ndarray
-    gap_ground: np.ndarray
-    valid: np.ndarray
-
-
-def engine_oversampling(instrument):
-    """Fine layers per bin chosen by the explicit engine's default rule (layer ≤ σz/4)."""
-    low, high = instrument.pulse.support(0.1587)
-    return max(1, int(np.ceil(8.0 * instrument.bin_height / max(high - low, 1e-12))))
 
 
 class ExpectedWaveformModel:
