@@ -173,6 +173,10 @@ def truth_log_prob(obs, settings) -> float:
     return float(problem.log_posterior(space.to_unbounded(true_row))[0, 0])
 
 
+#: Posterior quantiles a shot's row keeps per quantity.
+QUANTILE_KEYS = ("p05", "p16", "median", "p84", "p95")
+
+
 def _coverage(rows, name, lo, hi):
     inside = [
         r["posterior"][name][lo] <= r["truth"][name] <= r["posterior"][name][hi] for r in rows
@@ -184,6 +188,24 @@ def _known(rows, name):
     """Rows with a true value of ``name`` (the footprint's tallest stem only exists in an
     explicit stand)."""
     return [r for r in rows if np.isfinite(r["truth"].get(name, np.nan))]
+
+
+def _calibration(rows, name):
+    """How the truths sit in the intervals: the median and robust spread (half the 16–84 %
+    range) of z = (truth − median)/(half the 68 % interval), near 0 and 1 for calibrated
+    intervals (a spread below 1: too wide; a median off 0: off-centre), and the share of
+    truths below the 5 % and above the 95 % quantile (0.05 each when calibrated)."""
+    q = {k: np.array([r["posterior"][name][k] for r in rows]) for k in QUANTILE_KEYS}
+    truth = np.array([r["truth"][name] for r in rows])
+    half = 0.5 * (q["p84"] - q["p16"])
+    z = (truth - q["median"]) / np.where(half > 0, half, np.nan)
+    z16, z50, z84 = np.nanpercentile(z, [16, 50, 84])
+    return {
+        "z_median": float(z50),
+        "z_spread": float(0.5 * (z84 - z16)),
+        "below_p05": float(np.mean(truth < q["p05"])),
+        "above_p95": float(np.mean(truth > q["p95"])),
+    }
 
 
 def summarise(rows):
@@ -210,6 +232,7 @@ def summarise(rows):
             "coverage_90": _coverage(known, name, "p05", "p95"),
             "bias": float(err.mean()),
             "rmse": float(np.sqrt(np.mean(err**2))),
+            **_calibration(known, name),
         }
     direct_ok = [r for r in good if r["direct"]["status"] == "ok"]
     if direct_ok:

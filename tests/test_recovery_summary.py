@@ -1,0 +1,46 @@
+"""The recovery study's calibration summary (``studies/recovery.py``) on shots with known
+posteriors."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats
+
+STUDY = Path(__file__).resolve().parents[1] / "studies" / "recovery.py"
+
+
+@pytest.fixture(scope="module")
+def recovery():
+    spec = importlib.util.spec_from_file_location("recovery_study", STUDY)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def gaussian_rows(rng, n, width_factor):
+    """Shots whose truth is drawn from N(centre, 1) and whose reported posterior is
+    N(centre, width_factor²)."""
+    probabilities = {"p05": 0.05, "p16": 0.16, "median": 0.5, "p84": 0.84, "p95": 0.95}
+    rows = []
+    for centre in rng.normal(0.0, 5.0, n):
+        posterior = {k: centre + width_factor * stats.norm.ppf(p) for k, p in probabilities.items()}
+        rows.append({"truth": {"cover": centre + rng.normal()}, "posterior": {"cover": posterior}})
+    return rows
+
+
+def test_calibrated_intervals_give_unit_spread_and_five_percent_tails(recovery):
+    rows = gaussian_rows(np.random.default_rng(1), 4000, 1.0)
+    out = recovery._calibration(rows, "cover")
+    assert abs(out["z_median"]) < 0.05
+    assert out["z_spread"] == pytest.approx(1.0, abs=0.05)
+    assert out["below_p05"] == pytest.approx(0.05, abs=0.012)
+    assert out["above_p95"] == pytest.approx(0.05, abs=0.012)
+
+
+def test_intervals_twice_too_wide_halve_the_spread(recovery):
+    rows = gaussian_rows(np.random.default_rng(2), 4000, 2.0)
+    out = recovery._calibration(rows, "cover")
+    assert out["z_spread"] == pytest.approx(0.5, abs=0.03)
+    assert out["below_p05"] + out["above_p95"] < 0.01
