@@ -49,7 +49,11 @@ from lidarinv.inference import (  # noqa: E402
     invert_shot,
 )
 from lidarinv.inference.discrepancy import DISCREPANCY_MODELS, SIMULATED  # noqa: E402
-from lidarinv.inference.parameters import DEFAULT_STRUCTURE_PRIORS  # noqa: E402
+from lidarinv.inference.parameters import (  # noqa: E402
+    DEFAULT_FIXED,
+    DEFAULT_RHO_RATIO_PRIOR,
+    DEFAULT_STRUCTURE_PRIORS,
+)
 from lidarinv.inference.stand_mapping import TOP_SDS, StandMapping, default_template  # noqa: E402
 from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot  # noqa: E402
 from lidarinv.observe.analyse import analyse  # noqa: E402
@@ -79,8 +83,9 @@ def _recipe(rng, cone, **structure) -> ShotRecipe:
     return ShotRecipe(params, gain=rng.uniform(4000.0, 12000.0), baseline=50.0, noise_sigma=2.0)
 
 
-def draw_recipe(rng) -> ShotRecipe:
-    """Random stand and GEDI-like observation settings."""
+def draw_recipe(rng, settings=None) -> ShotRecipe:
+    """Random stand and GEDI-like observation settings (``settings`` unused: the stands
+    come from the study's own ranges)."""
     sd = rng.uniform(1.0, 4.0)
     mean = rng.uniform(8.0, 25.0)
     cone = rng.uniform(0.0, 1.0)
@@ -97,31 +102,54 @@ def draw_recipe(rng) -> ShotRecipe:
     )
 
 
-#: The structural priors a ``--truth prior`` stand is drawn from (crown radius slope fixed).
-STRUCTURE_PRIORS = {k: p for k, p in DEFAULT_STRUCTURE_PRIORS.items() if k != "crown_radius_slope"}
+def truth_priors(settings) -> tuple[dict, dict]:
+    """The structural priors a ``--truth prior`` stand is drawn from and the values held
+    fixed: the inversion's defaults with the priors file's overrides (crown radius slope
+    and anything else fixed as in the inversion), so that truth and inversion share one
+    prior. ρv/ρg is drawn from its prior too (key ``rho_ratio``)."""
+    priors = {**DEFAULT_STRUCTURE_PRIORS, "rho_ratio": DEFAULT_RHO_RATIO_PRIOR}
+    fixed = {k: v for k, v in DEFAULT_FIXED.items() if k in priors}
+    for name, change in settings.priors.items():
+        if name not in priors:
+            continue
+        if change.get("prior") is not None:
+            priors[name] = change["prior"]
+        if "fixed" in change:
+            fixed.pop(name, None)
+            if change["fixed"] is not None:
+                fixed[name] = change["fixed"]
+    return {k: p for k, p in priors.items() if k not in fixed}, fixed
 
 
-def draw_recipe_from_prior(rng) -> ShotRecipe:
-    """A stand whose structure is one draw of the inversion's own structural prior (the
-    nuisance parameters as in :func:`draw_recipe`): with truths drawn so, intervals that
-    sample the posterior correctly cover at their nominal rate."""
+def draw_recipe_from_prior(rng, settings) -> ShotRecipe:
+    """A stand whose structure and ρv/ρg are one draw of the inversion's own prior (with
+    its FAVD range; ground reflectance, gain and noise as in :func:`draw_recipe`): with
+    truths drawn so, intervals that sample the posterior correctly cover at their
+    nominal rate."""
     mapping = StandMapping(default_template())
+    priors, fixed = truth_priors(settings)
+    low, high = (0.0, np.inf) if settings.favd_range is None else settings.favd_range
     while True:
-        v = {k: np.array([prior.sample(rng, 1)[0]]) for k, prior in STRUCTURE_PRIORS.items()}
-        v.update(crown_radius_slope=np.array([0.1]), rho_ratio=np.array([1.5]))
+        v = {k: np.array([prior.sample(rng, 1)[0]]) for k, prior in priors.items()}
+        v.update({k: np.array([float(x)]) for k, x in fixed.items()})
         v["ground_elevation"] = np.zeros(1)
-        if mapping.valid(v)[0] and v["top_height"][0] < 50.0:
+        if not (mapping.valid(v)[0] and v["top_height"][0] < 50.0):
+            continue
+        vectors, derived = mapping.model_vectors(v)
+        if low <= derived["favd"][0] <= high:
             break
-    vectors, _ = mapping.model_vectors(v)
     column = dict(zip(mapping.model_free, vectors[0]))
-    return _recipe(
+    recipe = _recipe(
         rng,
         float(v["cone_fraction"][0]),
         **{k: column[k] for k in ("density", "height_mean", "height_sd", "crown_length_ratio")},
+        crown_radius_slope=float(v["crown_radius_slope"][0]),
         favd=column["favd"],
         understory_height=float(v["understory_height"][0]),
         understory_lai=float(v["understory_lai"][0]),
     )
+    params = replace(recipe.params, canopy_reflectance=0.3 * float(v["rho_ratio"][0]))
+    return replace(recipe, params=params)
 
 
 #: SamplerSettings fields that ``--map-search`` sets, in order.
@@ -134,7 +162,7 @@ RECIPES = {"study": draw_recipe, "prior": draw_recipe_from_prior}
 def one_shot(task):
     index, seed, explicit, settings, truth = task
     rng = np.random.default_rng(seed)
-    recipe = RECIPES[truth](rng)
+    recipe = RECIPES[truth](rng, settings)
     obs = synthetic_shot(recipe, rng, explicit=explicit, shot_id=index)
     truth = dict(obs.truth)
     row = {"shot": index, "truth": {k: truth[k] for k in (*QUANTITIES, "rho_ratio")}}

@@ -44,3 +44,24 @@ def test_intervals_twice_too_wide_halve_the_spread(recovery):
     out = recovery._calibration(rows, "cover")
     assert out["z_spread"] == pytest.approx(0.5, abs=0.03)
     assert out["below_p05"] + out["above_p95"] < 0.01
+
+
+def test_truth_drawn_from_the_priors_in_effect(recovery, tmp_path):
+    from lidarinv.inference import InversionSettings
+
+    path = tmp_path / "priors.toml"
+    path.write_text(
+        '[top_height]\nkind = "uniform"\nlower = 12.0\nupper = 20.0\n'
+        "[understory_lai]\nfixed = 0.0\n[favd]\nlower = 0.3\nupper = 1.2\n"
+    )
+    settings = InversionSettings.from_priors_file(path)
+    priors, fixed = recovery.truth_priors(settings)
+    assert fixed == {"crown_radius_slope": 0.1, "understory_lai": 0.0}
+    assert "understory_lai" not in priors and "rho_ratio" in priors
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        params = recovery.draw_recipe_from_prior(rng, settings).params
+        top = params.height_mean + recovery.TOP_SDS * params.height_sd
+        assert 12.0 <= top <= 20.0
+        assert 0.3 <= params.favd <= 1.2
+        assert params.understory_lai == 0.0
