@@ -51,7 +51,8 @@ CONVERGED = ModelSettings(radial_nodes=48, height_nodes=1024, tail=1e-9, depth_n
 
 @dataclass(frozen=True)
 class ExpectedWaveforms:
-    """Output of :meth:`forward.expected.ExpectedWaveformModel.evaluate` (arrays of shape (n, n_bins)).
+    """Output of :meth:`forward.expected.ExpectedWaveformModel.evaluate` (arrays of
+    shape (n, n_bins)).
 
     ``samples = canopy + ground``; rows with ``valid`` False hold zeros.
     ``gap_ground`` (n,) is E[P(0)].
