@@ -49,11 +49,8 @@ from lidarinv.inference import (  # noqa: E402
     invert_shot,
 )
 from lidarinv.inference.discrepancy import DISCREPANCY_MODELS, SIMULATED  # noqa: E402
-from lidarinv.inference.parameters import (  # noqa: E402
-    DEFAULT_FIXED,
-    DEFAULT_RHO_RATIO_PRIOR,
-    DEFAULT_STRUCTURE_PRIORS,
-)
+from lidarinv.inference.parameters import NUISANCE, STRUCTURE, default_space  # noqa: E402
+from lidarinv.inference.priors import Uniform  # noqa: E402
 from lidarinv.inference.stand_mapping import TOP_SDS, StandMapping, default_template  # noqa: E402
 from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot  # noqa: E402
 from lidarinv.observe.analyse import analyse  # noqa: E402
@@ -103,22 +100,15 @@ def draw_recipe(rng, settings=None) -> ShotRecipe:
 
 
 def truth_priors(settings) -> tuple[dict, dict]:
-    """The structural priors a ``--truth prior`` stand is drawn from and the values held
-    fixed: the inversion's defaults with the priors file's overrides (crown radius slope
-    and anything else fixed as in the inversion), so that truth and inversion share one
-    prior. ρv/ρg is drawn from its prior too (key ``rho_ratio``)."""
-    priors = {**DEFAULT_STRUCTURE_PRIORS, "rho_ratio": DEFAULT_RHO_RATIO_PRIOR}
-    fixed = {k: v for k, v in DEFAULT_FIXED.items() if k in priors}
-    for name, change in settings.priors.items():
-        if name not in priors:
-            continue
-        if change.get("prior") is not None:
-            priors[name] = change["prior"]
-        if "fixed" in change:
-            fixed.pop(name, None)
-            if change["fixed"] is not None:
-                fixed[name] = change["fixed"]
-    return {k: p for k, p in priors.items() if k not in fixed}, fixed
+    """The priors a ``--truth prior`` stand's structure and ρv/ρg are drawn from, and the
+    values held fixed: the inversion's own parameter space with the priors file's
+    overrides, so that truth and inversion share one prior."""
+    placeholder = Uniform(0.0, 1.0)  # the shot-specific nuisance priors are not drawn
+    nuisance = {name: placeholder for name in NUISANCE if name != "rho_ratio"}
+    space = default_space(nuisance, settings.priors)
+    drawn = [space.by_name[name] for name in (*STRUCTURE, "rho_ratio")]
+    priors = {p.name: p.prior for p in drawn if p.fixed is None}
+    return priors, {p.name: p.fixed for p in drawn if p.fixed is not None}
 
 
 def draw_recipe_from_prior(rng, settings) -> ShotRecipe:
