@@ -6,6 +6,7 @@ import pytest
 
 from lidarinv.inference import coordinates
 from lidarinv.inference.parameters import default_space
+from lidarinv.inference.priors import LogUniform, Uniform
 
 
 def test_crown_base_coordinate_round_trip_with_exact_jacobian():
@@ -160,3 +161,31 @@ def test_ground_centroid_needs_an_understory(nuisance_priors):
     assert "ground-centroid" not in fixed_ground.signature()
     assert "ground-centroid" in default_space(nuisance_priors).signature()  # on by default
     assert "ground-centroid" not in default_space(nuisance_priors, ridges=BOTH).signature()
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {},
+        # lower cover and PAI bounds that bind on sparse canopies (the sparse branch)
+        {"cover": {"prior": Uniform(0.1, 0.95)}, "pai": {"prior": LogUniform(0.5, 15.0)}},
+        # fixed inputs of the crown-base and centroid maps
+        {"height_sd": {"fixed": 2.0}, "understory_lai": {"fixed": 0.4}},
+        {"top_height": {"fixed": 22.0}, "rho_ratio": {"fixed": 1.5}},
+    ],
+)
+def test_compiled_ridge_maps_equal_the_numpy_reference(changes, nuisance_priors):
+    """The compiled maps give the numpy maps' values and Jacobians, and NaN where they do
+    (no t within the bounds, no mean height, NaN coordinates), near the prior and far out."""
+    space = default_space(nuisance_priors, overrides=changes)
+    rng = np.random.default_rng(11)
+    x = space.sample_prior(rng, 3000)
+    u = space.to_unbounded(x)
+    u = np.where(np.isfinite(u), u, 0.0)
+    u[1000:] += rng.normal(0.0, 4.0, u[1000:].shape)  # well beyond the prior's bounds too
+    u[::97, 0] = np.nan
+    compiled, jac = space.from_unbounded(u)
+    reference, jac_reference = space.from_unbounded(u, reference=True)
+    np.testing.assert_allclose(compiled, reference, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(jac, jac_reference, rtol=1e-12, atol=1e-10)
+    assert np.isnan(compiled).any() and np.isfinite(compiled[:1000]).mean() > 0.9

@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import coordinates
+from . import compiled_coordinates, coordinates
 from .discrepancy import DISCREPANCY_MODELS
 from .priors import (
     DEFAULT_UNBOUNDED,
@@ -175,6 +175,11 @@ class ParameterSpace:
             else None
         )
         self._centroid = self._centroid_map() if "ground-centroid" in self.ridges else None
+        inputs = ("top_height", "height_sd", "understory_lai", "understory_height", "rho_ratio")
+        self._ridge_inputs = (  # for the compiled maps: each a column, or FIXED and a value
+            np.array([self._index(n) for n in inputs], np.int64),
+            np.array([self._fixed_value(n) for n in inputs], float),
+        )
 
     @property
     def ndim(self) -> int:
@@ -215,10 +220,16 @@ class ParameterSpace:
         total = self._priors.log_pdf(x).sum(axis=1)
         return np.where(np.isfinite(total), total, -np.inf)
 
-    def from_unbounded(self, u):
-        """Physical values (n, ndim) and log|Jacobian| (n,) from unbounded coordinates."""
+    def from_unbounded(self, u, reference=False):
+        """Physical values (n, ndim) and log|Jacobian| (n,) from unbounded coordinates;
+        ``reference=True`` maps the ridge coordinates with numpy instead of compiled code."""
         u = np.atleast_2d(np.asarray(u, float))
         x, log_jac = self._priors.from_unbounded(u)
+        (self._ridges_numpy if reference else self._ridges_compiled)(u, x, log_jac)
+        return x, log_jac.sum(axis=1)
+
+    def _ridges_numpy(self, u, x, log_jac):
+        """Overwrite the ridge-coordinate columns of x and log_jac in place."""
         if self._joint is not None:
             c, a, cover_bounds, pai_bounds = self._joint
             x[:, c], x[:, a], log_jac[:, c] = coordinates.to_cover_pai_bounded(
@@ -233,7 +244,20 @@ class ParameterSpace:
             centroid = lower + (x[:, g] - lower) * stretch
             x[:, g] = centroid - self._understory_centroid(x)
             log_jac[:, g] += np.log(stretch)
-        return x, log_jac.sum(axis=1)
+
+    def _ridges_compiled(self, u, x, log_jac):
+        """As :meth:`_ridges_numpy`, in :mod:`.compiled_coordinates`."""
+        slope = coordinates.INTERCEPTION_SLOPE
+        if self._joint is not None:
+            c, a, cover_bounds, pai_bounds = self._joint
+            compiled_coordinates.cover_pai_bounded(
+                u, x, log_jac, c, a, cover_bounds, pai_bounds, slope
+            )
+        if self._base is not None or self._centroid is not None:
+            columns, fixed = self._ridge_inputs
+            compiled_coordinates.crown_and_ground(
+                u, x, log_jac, self._base, self._centroid, columns, fixed, TOP_SDS, slope
+            )
 
     def to_unbounded(self, x):
         x = np.atleast_2d(np.asarray(x, float))
@@ -252,6 +276,13 @@ class ParameterSpace:
             r = self._base
             u[:, r] = coordinates.crown_base_from_ratio(x[:, r], self._mean(x))
         return u
+
+    def _index(self, name) -> int:
+        return self.names.index(name) if name in self.names else compiled_coordinates.FIXED
+
+    def _fixed_value(self, name) -> float:
+        p = self.by_name.get(name)
+        return np.nan if p is None or p.fixed is None else float(p.fixed)
 
     def _column(self, x, name):
         """Values of parameter ``name`` in rows x, free or fixed."""
