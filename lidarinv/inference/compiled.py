@@ -69,24 +69,29 @@ def _unit(unit, data):
 def _linear_fit(signal, baseline, noise_sigma, fixed, y, unit):
     n, bins = signal.shape
     out = np.empty((n, 4))
+    inverse = np.empty(bins)  # 1/v per bin, and Σ ln(2πv): recomputed only when σn changes
+    s2 = log_var = math.nan
     for r in range(n):
-        s2 = noise_sigma[r] ** 2
-        ww = wr = log_var = 0.0
-        plain = 0  # bins with noise only, whose logarithms are all the same
+        if not noise_sigma[r] ** 2 == s2:
+            s2 = noise_sigma[r] ** 2
+            log_var = 0.0
+            plain = 0  # bins with noise only, whose logarithms are all the same
+            for j in range(bins):
+                inverse[j] = 1.0 / (s2 + fixed[j])
+                if fixed[j] == 0.0:
+                    plain += 1
+                else:
+                    log_var += math.log(2.0 * math.pi * (s2 + fixed[j]))
+            log_var += plain * math.log(2.0 * math.pi * s2)
+        ww = wr = 0.0
         for j in range(bins):
-            v = s2 + fixed[j]
-            ww += signal[r, j] * signal[r, j] / v
-            wr += signal[r, j] * (y[j] - baseline[r] * unit[j]) / v
-            if fixed[j] == 0.0:
-                plain += 1
-            else:
-                log_var += math.log(2.0 * math.pi * v)
-        log_var += plain * math.log(2.0 * math.pi * s2)
+            ww += signal[r, j] * signal[r, j] * inverse[j]
+            wr += signal[r, j] * (y[j] - baseline[r] * unit[j]) * inverse[j]
         a = wr / ww if ww > 0.0 else 0.0
         chi2 = 0.0
         for j in range(bins):  # a second pass: no cancellation between large sums
             resid = y[j] - baseline[r] * unit[j] - a * signal[r, j]
-            chi2 += resid * resid / (s2 + fixed[j])
+            chi2 += resid * resid * inverse[j]
         out[r, 0], out[r, 1], out[r, 2], out[r, 3] = ww, a, chi2, log_var
     return out
 
