@@ -58,7 +58,7 @@ from functools import partial
 
 import numpy as np
 
-from . import expected_depth, expected_grid, expected_numba
+from . import expected_depth, expected_grid, expected_ground, expected_numba
 from .crowns import CROWN_SHAPES, SHAPE_NAMES
 from .expected_settings import (
     CONVERGED,  # noqa: F401  (re-exported)
@@ -76,8 +76,11 @@ from .expected_tables import (
 )
 from .expected_vectors import DEFAULT_FREE, MIX_FIELDS, VECTOR_FIELDS, physical_rows
 from .expected_vectors import FIELD_INDEX as _I
-from .pulse import layer_kernel
+from .pulse import GaussianPulse, layer_kernel
 from .stand_params import HEIGHT_DISTRIBUTIONS, StandParams
+
+#: Compiled ground returns by (backend, pulse type); others take the numpy function.
+GROUND_RETURNS = {("numba", GaussianPulse): expected_numba.gaussian_ground_return}
 
 
 class ExpectedWaveformModel:
@@ -166,6 +169,9 @@ class ExpectedWaveformModel:
             raise ImportError("ModelSettings(backend='numba') needs numba installed")
         compiled = s.backend != "numpy" and expected_numba.AVAILABLE and s.height_nodes >= 4
         self.backend = "numba" if compiled else "numpy"
+        self._ground_return = GROUND_RETURNS.get(
+            (self.backend, type(instrument.pulse)), expected_ground.ground_return
+        )
         self._add_depth = partial(
             expected_depth.add_tree_depth,
             tails=self._tails,
@@ -249,20 +255,12 @@ class ExpectedWaveformModel:
         for start in range(0, n, chunk):
             rows = slice(start, start + chunk)
             canopy[rows], gap0[rows] = self._canopy(full[rows])
-        g = full[:, _I["ground_elevation"]]
-        dz = self.instrument.bin_height
-        low, high = self._ground_support
-        first = max(int(np.searchsorted(self.heights, g.min() + low)), 0)
-        last = int(np.searchsorted(self.heights, g.max() + high, side="right"))
-        ground = np.zeros_like(canopy)
-        if last > first:
-            pulse = self.instrument.pulse.pdf(self.heights[None, first:last] - g[:, None])
-            ground[:, first:last] = (full[:, _I["ground_reflectance"]] * gap0)[:, None] * dz * pulse
-        canopy *= full[:, _I["canopy_reflectance"]][:, None]
-        if not valid.all():
-            canopy[~valid] = 0.0
-            ground[~valid] = 0.0
-        return ExpectedWaveforms(canopy + ground, canopy, ground, gap0, valid)
+        samples, canopy, ground = self._ground_return(
+            canopy, gap0, full[:, _I["ground_elevation"]], full[:, _I["canopy_reflectance"]],
+            full[:, _I["ground_reflectance"]], valid, self.heights, self.instrument.bin_height,
+            self.instrument.pulse, self._ground_support,
+        )  # fmt: skip
+        return ExpectedWaveforms(samples, canopy, ground, gap0, valid)
 
     def gap(self, theta, z) -> np.ndarray:
         """E[P(z)] at heights ``z`` (m above the ground), shape (n, len(z))."""

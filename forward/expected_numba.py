@@ -19,12 +19,20 @@ import importlib.util
 
 import numpy as np
 
+from . import expected_ground
+from .expected_ground import ground_bins
 from .expected_tables import LAGRANGE_CUBIC, MAX_EXPONENT, WEIGHT_SERIES
 
 #: Whether numba is installed (it is imported, and the kernel compiled, on first use).
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
-__all__ = ["AVAILABLE", "add_cohort_depth", "assemble_grid", "grid_canopy"]
+__all__ = [
+    "AVAILABLE",
+    "add_cohort_depth",
+    "assemble_grid",
+    "gaussian_ground_return",
+    "grid_canopy",
+]
 
 
 def _series(m, x):
@@ -265,6 +273,40 @@ def _grid_canopy(
     )  # fmt: skip
 
 
+def _gaussian_ground(
+    canopy, gap0, zg, rho_v, rho_g, valid, h_first, scale, sigma, step, first, last
+):
+    n, bins = canopy.shape
+    ground = np.zeros((n, bins))
+    total = np.empty((n, bins))
+    factor = np.exp(-step * step)
+    for r in range(n):
+        if not valid[r]:
+            canopy[r] = 0.0
+            total[r] = 0.0
+            continue
+        # e^{−d²/2} at d_j = d_k + (j − k)δ from the bin k nearest the ground, by its exact
+        # ratios e^{±d_jδ − δ²/2} (each the previous times e^{−δ²}): three exps a row
+        offset = (zg[r] - h_first) / (sigma * step)
+        k = min(max(first + int(np.floor(offset + 0.5)), first), last - 1)
+        d = (k - first - offset) * step
+        peak = rho_g[r] * gap0[r] * scale * np.exp(-0.5 * d * d)
+        value, ratio = peak, np.exp(-d * step - 0.5 * step * step)
+        for j in range(k, last):
+            ground[r, j] = value
+            value *= ratio
+            ratio *= factor
+        value, ratio = peak, np.exp(d * step - 0.5 * step * step)
+        for j in range(k - 1, first - 1, -1):
+            value *= ratio
+            ratio *= factor
+            ground[r, j] = value
+        for j in range(bins):
+            canopy[r, j] *= rho_v[r]
+            total[r, j] = canopy[r, j] + ground[r, j]
+    return total, canopy, ground
+
+
 _COMPILED = {}
 
 
@@ -285,6 +327,7 @@ def _kernels():
         _COMPILED["cohort_depth"] = _cohort_depth
         _COMPILED["assemble_grid"] = _assemble_grid
         _COMPILED["grid_canopy"] = njit(cache=True)(_grid_canopy)
+        _COMPILED["gaussian_ground"] = njit(cache=True)(_gaussian_ground)
     return _COMPILED
 
 
@@ -335,10 +378,31 @@ def grid_canopy(
     trees; the depth grid starts at ``z0`` (n,) and has ``nodes`` points ``grid_step``
     apart. The same numbers as :func:`add_cohort_depth` then :func:`assemble_grid`."""
     matrix, first, interp, layers_to_samples = operator
-    stacked = [np.stack([_f64(c[i]) for c in cohorts]) for i in range(5)]
+    if len(cohorts) == 1:  # a view with a leading axis, not a copy
+        stacked = [_f64(part)[None] for part in cohorts[0]]
+    else:
+        stacked = [np.stack([_f64(c[i]) for c in cohorts]) for i in range(5)]
     return _kernels()["grid_canopy"](
         *stacked, _f64(r0), _f64(r1), _f64(ratio), _f64(s_lo), _f64(s_hi), _f64(extinction),
         _f64(node_favd), _f64(z0), float(grid_step), int(nodes), _f64(matrix), int(first),
         np.ascontiguousarray(shift, dtype=np.int64), _f64(interp), _f64(layers_to_samples),
         _f64(under_scale), _f64(under_top), float(layer), int(bins), float(undershoot),
+    )  # fmt: skip
+
+
+def gaussian_ground_return(
+    canopy, gap0, ground_elevation, rho_v, rho_g, valid, heights, dz, pulse, support
+):
+    """Compiled :func:`forward.expected_ground.ground_return` for a Gaussian pulse, with
+    ``heights`` evenly spaced by ``dz``: the same arguments and numbers, to rounding."""
+    first, last = ground_bins(heights, ground_elevation, support)
+    if last <= first:
+        return expected_ground.ground_return(
+            canopy, gap0, ground_elevation, rho_v, rho_g, valid, heights, dz, pulse, support
+        )
+    sigma = pulse.sigma_m
+    return _kernels()["gaussian_ground"](
+        canopy, _f64(gap0), _f64(ground_elevation), _f64(rho_v), _f64(rho_g),
+        np.ascontiguousarray(valid, dtype=np.bool_), float(heights[first]),
+        float(dz / (sigma * np.sqrt(2.0 * np.pi))), float(sigma), float(dz / sigma), first, last,
     )  # fmt: skip
