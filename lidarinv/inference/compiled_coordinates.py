@@ -15,11 +15,13 @@ from scipy.special import lambertw
 
 from .compiled import LOGIT, _unit_and_log_slope
 
+# error_model="numpy": x/0 gives ±inf or NaN, as in the numpy maps, instead of raising
+
 #: Column code of a parameter held fixed (its value is passed instead).
 FIXED = -1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _lambert_arguments(u, column, slope, p_hi, p_lo, sparse_below):
     """−ak·e^{−ak} with ak = a·p/Y for the PAI bounds p_hi (every row) and p_lo (rows
     whose interception Y = exp(s) lies below ``sparse_below``; NaN elsewhere)."""
@@ -35,7 +37,7 @@ def _lambert_arguments(u, column, slope, p_hi, p_lo, sparse_below):
     return high, low
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _log_lc_at_pai(k_slope, w, slope):
     """ln Lc where PAI meets a bound, from ak and W₀(−ak·e^{−ak}); NaN for ak ≤ 1."""
     if not (k_slope > 1.0):
@@ -43,7 +45,7 @@ def _log_lc_at_pai(k_slope, w, slope):
     return math.log((k_slope + w) / slope)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cover_pai(u, x, log_jac, c, a, bounds, slope, w_high, w_low):
     """Cover and PAI into x[:, c], x[:, a] (as :func:`.coordinates.to_cover_pai_bounded`)."""
     c_lo, c_hi, p_lo, p_hi = bounds[0], bounds[1], bounds[2], bounds[3]
@@ -73,12 +75,12 @@ def _cover_pai(u, x, log_jac, c, a, bounds, slope, w_high, w_low):
         log_jac[r, a] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _value(x, r, column, fixed):
     return x[r, column] if column != FIXED else fixed
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _crown_and_ground(u, x, log_jac, base, centroid, columns, fixed, top_sds, slope):
     """Crown length ratio from the crown base (``base`` ≥ 0: its column) and ground
     elevation from the ground-plus-understory centroid (``centroid``: column, lower,
