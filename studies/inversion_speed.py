@@ -121,7 +121,7 @@ def add_sampler_options(parser):
         "--moves",
         nargs="+",
         metavar="NAME=WEIGHT",
-        help="move mixture (names from lidarinv.inference.sampling.MOVES); default the sampler's",
+        help="move mixture (names from lidarinv.inference.moves.MOVES); default the sampler's",
     )
 
 

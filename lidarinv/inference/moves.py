@@ -1,5 +1,11 @@
-"""An ensemble move for near-Gaussian posteriors: independence proposals from a Student t
-fitted to the complementary half of the ensemble.
+"""Ensemble moves: emcee's red-blue moves with a batched acceptance step, and a move for
+near-Gaussian posteriors, independence proposals from a Student t fitted to the
+complementary half of the ensemble.
+
+emcee's red-blue moves accept or reject the proposals of a half-ensemble walker by walker
+in Python, one uniform draw each (about 0.1 ms a step for 64 walkers).
+:class:`BatchAcceptance` draws the half's uniforms in one call, from the same stream in
+the same order, and tests them together: the same chain, cheaper.
 
 emcee's red-blue scheme updates one half of the walkers at a time, with proposals that may
 depend on the other half only; each such proposal leaves the posterior invariant once its
@@ -10,12 +16,64 @@ the heavy tails keep walkers in the posterior's tails moving. Where it is not (s
 modes, bent ridges), proposals are rejected and the mixture's other moves carry on.
 """
 
+import emcee
 import numpy as np
 from emcee.moves.red_blue import RedBlueMove
+from emcee.state import State
 from scipy.linalg import solve_triangular
 
 
-class EnsembleStudentMove(RedBlueMove):
+class BatchAcceptance(RedBlueMove):
+    """A red-blue move whose Metropolis–Hastings tests run on a whole half-ensemble."""
+
+    def propose(self, model, state):
+        n_walkers, ndim = state.coords.shape
+        if n_walkers < 2 * ndim and not self.live_dangerously:
+            raise RuntimeError(
+                f"a red-blue move needs at least twice as many walkers as dimensions "
+                f"({n_walkers} walkers, {ndim} dimensions)"
+            )
+        self.setup(state.coords)
+        accepted = np.zeros(n_walkers, dtype=bool)
+        group = np.arange(n_walkers) % self.nsplits
+        if self.randomize_split:
+            model.random.shuffle(group)
+        for split in range(self.nsplits):
+            moving = group == split
+            halves = [state.coords[group == j] for j in range(self.nsplits)]
+            others = halves[:split] + halves[split + 1 :]
+            proposal, log_factor = self.get_proposal(halves[split], others, model.random)
+            log_prob, blobs = model.compute_log_prob_fn(proposal)
+            log_uniform = np.log(model.random.rand(int(moving.sum())))
+            gain = log_factor + log_prob - state.log_prob[moving]
+            accepted[moving] = gain > log_uniform  # NaN (−inf − −inf) is rejected
+            state = self.update(
+                state, State(proposal, log_prob=log_prob, blobs=blobs), accepted, moving
+            )
+        return state, accepted
+
+
+class DEMove(BatchAcceptance, emcee.moves.DEMove):
+    """emcee's differential-evolution move, batched acceptance."""
+
+
+class DESnookerMove(BatchAcceptance, emcee.moves.DESnookerMove):
+    """emcee's snooker move, batched acceptance."""
+
+
+class StretchMove(BatchAcceptance, emcee.moves.StretchMove):
+    """emcee's stretch move, batched acceptance."""
+
+
+class WalkMove(BatchAcceptance, emcee.moves.WalkMove):
+    """emcee's walk move, batched acceptance."""
+
+
+class KDEMove(BatchAcceptance, emcee.moves.KDEMove):
+    """emcee's KDE move, batched acceptance."""
+
+
+class EnsembleStudentMove(BatchAcceptance):
     """Independence proposals from a Student t fitted to the complementary walkers.
 
     Parameters
@@ -63,3 +121,14 @@ class EnsembleStudentMove(RedBlueMove):
         """log q up to a constant (the same for every point), from the squared whitened
         distance to the mean."""
         return -0.5 * (self.dof + ndim) * np.log1p(distance / self.dof)
+
+
+#: Move constructors by name.
+MOVES = {
+    "de": DEMove,
+    "de-snooker": DESnookerMove,
+    "stretch": StretchMove,
+    "walk": WalkMove,
+    "kde": KDEMove,
+    "ensemble-t": EnsembleStudentMove,
+}

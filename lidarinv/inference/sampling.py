@@ -8,7 +8,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .lockstep import minimize_in_lockstep
-from .moves import EnsembleStudentMove
+from .moves import MOVES
 
 #: Large finite objective for the optimiser where the log-density is −inf.
 _PENALTY = 1e12
@@ -122,17 +122,6 @@ class BatchedSampler(emcee.EnsembleSampler):
         if blobs.shape[1] < 2:  # as emcee: a single blob squeezed, none as None
             blobs = blobs[:, 0] if blobs.shape[1] else None
         return log_prob, blobs
-
-
-#: Move constructors by name.
-MOVES = {
-    "de": emcee.moves.DEMove,
-    "de-snooker": emcee.moves.DESnookerMove,
-    "stretch": emcee.moves.StretchMove,
-    "walk": emcee.moves.WalkMove,
-    "kde": emcee.moves.KDEMove,
-    "ensemble-t": EnsembleStudentMove,
-}
 
 
 @dataclass
