@@ -65,3 +65,27 @@ def test_truth_drawn_from_the_priors_in_effect(recovery, tmp_path):
         assert 12.0 <= top <= 20.0
         assert 0.3 <= params.favd <= 1.2
         assert params.understory_lai == 0.0
+
+
+def test_breakdown_finds_off_centring_where_it_is(monkeypatch):
+    """Intervals centred half a width low on tall stands only: the breakdown by top
+    height shows it there and nowhere else, and not by τ."""
+    monkeypatch.syspath_prepend(str(STUDY.parent))
+    from recovery_breakdown import breakdown
+
+    rng = np.random.default_rng(3)
+    probabilities = {"p05": 0.05, "p16": 0.16, "median": 0.5, "p84": 0.84, "p95": 0.95}
+    rows = []
+    for top in rng.uniform(10.0, 34.0, 3000):
+        centre = top + rng.normal() - (0.5 if top >= 22.0 else 0.0)
+        posterior = {k: centre + stats.norm.ppf(p) for k, p in probabilities.items()}
+        truth = {"top_height": top, "cover": rng.uniform(), "footprint_top_height": top - 0.5}
+        rows.append({"truth": truth, "posterior": {"top_height": posterior}, "max_tau": 50.0})
+    out = breakdown(rows, "top_height")
+    low, middle, high, tallest = out["top_height"]
+    assert abs(low["z_median"]) < 0.1 and abs(middle["z_median"]) < 0.1
+    assert high["z_median"] == pytest.approx(0.5, abs=0.1)
+    assert tallest["z_median"] == pytest.approx(0.5, abs=0.1)
+    assert low["coverage_68"] == pytest.approx(0.68, abs=0.05)
+    assert [b["n"] for b in out["max_tau"]] == [0, 3000, 0, 0]
+    assert out["tallest_stem_below_top_m"] == pytest.approx([0.5, 0.5, 0.5])
