@@ -208,6 +208,14 @@ def _known(rows, name):
     return [r for r in rows if np.isfinite(r["truth"].get(name, np.nan))]
 
 
+def standardised_errors(rows, name) -> np.ndarray:
+    """z = (truth − median)/(half the 68 % interval) per shot; NaN for a zero width."""
+    q = {k: np.array([r["posterior"][name][k] for r in rows]) for k in ("p16", "median", "p84")}
+    truth = np.array([r["truth"][name] for r in rows])
+    half = 0.5 * (q["p84"] - q["p16"])
+    return (truth - q["median"]) / np.where(half > 0, half, np.nan)
+
+
 def _calibration(rows, name):
     """How the truths sit in the intervals: the median and robust spread (half the 16–84 %
     range) of z = (truth − median)/(half the 68 % interval), near 0 and 1 for calibrated
@@ -215,9 +223,7 @@ def _calibration(rows, name):
     truths below the 5 % and above the 95 % quantile (0.05 each when calibrated)."""
     q = {k: np.array([r["posterior"][name][k] for r in rows]) for k in QUANTILE_KEYS}
     truth = np.array([r["truth"][name] for r in rows])
-    half = 0.5 * (q["p84"] - q["p16"])
-    z = (truth - q["median"]) / np.where(half > 0, half, np.nan)
-    z16, z50, z84 = np.nanpercentile(z, [16, 50, 84])
+    z16, z50, z84 = np.nanpercentile(standardised_errors(rows, name), [16, 50, 84])
     return {
         "z_median": float(z50),
         "z_spread": float(0.5 * (z84 - z16)),

@@ -20,7 +20,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from recovery import QUANTITIES, _calibration, _coverage, _known
+from recovery import QUANTITIES, _calibration, _coverage, _known, standardised_errors
 
 OUTPUT = Path(__file__).parent / "output"
 
@@ -68,9 +68,7 @@ def _summary(rows, quantity) -> dict:
 
 def plot(rows, quantity, path):
     rows = _known([r for r in rows if "posterior" in r], quantity)
-    q = {k: np.array([r["posterior"][quantity][k] for r in rows]) for k in ("p16", "median", "p84")}
-    truth = np.array([r["truth"][quantity] for r in rows])
-    z = (truth - q["median"]) / (0.5 * (q["p84"] - q["p16"]))
+    z = standardised_errors(rows, quantity)
     top = np.array([r["truth"]["top_height"] for r in rows])
     cover = np.array([r["truth"]["cover"] for r in rows])
     fig, ax = plt.subplots(figsize=(6, 4))
