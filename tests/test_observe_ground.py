@@ -93,6 +93,21 @@ def test_no_signal_gets_a_status_not_an_exception():
     assert result.status == "no signal" and result.rh is None and np.isnan(result.ground)
 
 
+def test_a_noise_spike_below_the_signal_is_not_the_ground(setup):
+    """A narrow spike far below the return clears the ground finder's floor (2-bin
+    smoothing) but not the signal extent's (6 bins, as the recovery study uses; the
+    inversion smooths over the pulse σ, about 6 bins for GEDI): alone, find_ground takes it for the lowest mode; searching
+    within the signal extent, as analyse does, finds the true ground."""
+    rng = np.random.default_rng(8)
+    obs = _shot(setup, 0.5, rng, gain=3000.0, first=-160)
+    spike = 20  # 140 bins (21 m) below the ground
+    obs.samples[spike - 1 : spike + 2] += [3.0, 7.0, 3.0]
+    assert abs(find_ground(obs.samples, obs.axis, 40.0, 1.0).position - obs.axis[spike]) < 0.3
+    result = analyse(obs, smooth_bins=6.0)
+    assert result.status == "ok"
+    assert result.ground == pytest.approx(GROUND_Z, abs=0.05)
+
+
 def test_ground_below_the_window(setup):
     rng = np.random.default_rng(4)
     obs = _shot(setup, 0.0, rng, gain=3000.0, first=7)  # window starts 1 m above ground

@@ -135,6 +135,7 @@ def analyse(
         n_sigma=n_sigma,
         smooth_bins=ground_smooth_bins,
         valid=obs.valid_mask,
+        within=(extent.end_index, extent.start_index),
     )
     if peak is None:
         result.status, result.reason = "no ground peak", "no significant mode above the floor"

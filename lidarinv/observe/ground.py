@@ -57,6 +57,7 @@ def find_ground(
     smooth_bins: float | None = 2.0,
     prominence_sigmas: float = 4.0,
     valid=None,
+    within=None,
 ) -> GroundPeak | None:
     """Locate the ground peak: the lowest significant mode above the noise floor.
 
@@ -78,6 +79,9 @@ def find_ground(
         Gaussian smoothing σ (bins) for detection only.
     valid : array of bool, optional
         Samples usable in the fit.
+    within : (int, int), optional
+        First and last sample index a peak may lie at, e.g. the signal extent's: a noise
+        spike outside it is not taken for the ground.
 
     Returns
     -------
@@ -92,6 +96,8 @@ def find_ground(
     peaks, _ = find_peaks(
         smoothed, height=n_sigma * sigma_s, prominence=prominence_sigmas * sigma_s
     )
+    if within is not None:
+        peaks = peaks[(peaks >= within[0]) & (peaks <= within[1])]
     if peaks.size == 0:
         return None
     peak = int(peaks[0])  # lowest on the ascending axis
