@@ -52,9 +52,18 @@ shifted by whole bins (:mod:`forward.expected_grid`, compiled in
 every fine-layer edge (z = edge − g) and convolved as one matrix product. The uniform
 understory multiplies E[P] by its own transmission; the ground pulse is ρg·E[P(0)]·Δz·
 pulse(z_j − g), for a Gaussian or a measured pulse alike. Slopes are not modelled here.
+
+Conditioning on the tallest tree. ``height_cap`` H stops cohort 1 at H: its trees below
+keep their intensity, λ·f(h) for h ≤ H, so the cohort holds λ·F(H) stems on a grid ending
+at H. ``apex_density`` adds a cohort of that many stems per hectare, in cohort 1's shape
+mix, with heights spread evenly over the :data:`APEX_WIDTH` below H. Together they give
+the expected waveform of a footprint whose tallest tree is known, e.g. a latent tallest
+stem in the inversion; both are checked against the mean of explicit stands.
 """
 
+from collections.abc import Callable
 from functools import partial
+from typing import NamedTuple
 
 import numpy as np
 
@@ -74,13 +83,44 @@ from .expected_tables import (
     tail_integrals,
     tail_matrix,
 )
-from .expected_vectors import DEFAULT_FREE, MIX_FIELDS, VECTOR_FIELDS, physical_rows
+from .expected_vectors import (
+    CONDITIONING_FIELDS,
+    DEFAULT_FREE,
+    MIX_FIELDS,
+    VECTOR_FIELDS,
+    physical_rows,
+)
 from .expected_vectors import FIELD_INDEX as _I
 from .pulse import GaussianPulse, layer_kernel
 from .stand_params import HEIGHT_DISTRIBUTIONS, StandParams
 
 #: Compiled ground returns by (backend, pulse type); others take the numpy function.
 GROUND_RETURNS = {("numba", GaussianPulse): expected_numba.gaussian_ground_return}
+
+#: Height span (m) of the apex trees, which stand on the last APEX_WIDTH below the cap.
+APEX_WIDTH = 0.02
+
+
+class Cohort(NamedTuple):
+    """One cohort's trees, per row: ``stems`` (stems/ha), ``pdf(h)`` their height
+    density (1/m) at heights h (n, k) on the grid span [``lo``, ``hi``] (m), the crown
+    shape ``fractions`` of the model's shapes ((n, S), or (1, S) for every row) and
+    whether the row has the cohort at all (``present``, (n,) bool)."""
+
+    stems: np.ndarray
+    pdf: Callable
+    lo: np.ndarray
+    hi: np.ndarray
+    fractions: np.ndarray
+    present: np.ndarray
+
+
+def _family_pdf(fast, args, h):
+    return fast("pdf", h, *args)
+
+
+def _uniform_pdf(h):
+    return np.ones_like(h)
 
 
 class ExpectedWaveformModel:
@@ -194,6 +234,7 @@ class ExpectedWaveformModel:
         """All of :data:`VECTOR_FIELDS` for one parameter object."""
         values = params.as_dict()
         values["ground_elevation"] = ground_elevation
+        values.update(CONDITIONING_FIELDS)
         values.update(zip(MIX_FIELDS, params.shape_mix))
         return np.array([float(values[name]) for name in VECTOR_FIELDS])
 
@@ -353,27 +394,39 @@ class ExpectedWaveformModel:
             )
         return self._operators[nodes]
 
-    def _cohorts(self, v):
-        """Per cohort: (weight, distribution arguments, lo, hi), the grid span [lo, hi] (m).
-
-        The arguments ``(shape_args, loc, scale)`` of the family, per row, shaped (n, 1)
-        for the height grid.
-        """
+    def _cohorts(self, v) -> list[Cohort]:
+        """The cohorts of full vectors ``v``: cohort 1 (stopped at ``height_cap``, its
+        trees below keeping their density), cohort 2 if the model has one, and the apex
+        trees at the cap (``apex_density``) where a row has any."""
         t, tail, fast = self.template.height_truncation, self.settings.tail, self._family.fast
+        density, cap = v[:, _I["density"]], v[:, _I["height_cap"]]
+        capped = np.isfinite(cap)
+        mix = v[:, self._mix_index]  # cohort 1's fractions of the model's shapes
         out = []
-        for weight, mean, sd in self._cohort_columns(v):
+        for cohort, (weight, mean, sd) in enumerate(self._cohort_columns(v)):
             shape_args, loc, scale = self._family.arguments(mean, sd, t)
             lo = fast("ppf", tail, shape_args, loc, scale)
             hi = np.maximum(fast("isf", tail, shape_args, loc, scale), lo + 1e-6)
+            stems = density * weight
+            if cohort == 0 and capped.any():
+                below = 1.0 - fast("sf", np.where(capped, cap, hi), shape_args, loc, scale)
+                stems = np.where(capped, stems * np.clip(below, 0.0, 1.0), stems)
+                hi = np.where(capped, np.maximum(np.minimum(hi, cap), lo + 1e-6), hi)
             column = tuple(np.asarray(x, float)[..., None] for x in shape_args)
             args = (column, np.asarray(loc, float)[..., None], scale[:, None])
-            out.append((weight, args, lo, hi))
+            pdf = partial(_family_pdf, fast, args)
+            fractions = mix if cohort == 0 else self._mixes[1, self._shapes][None, :]
+            out.append(Cohort(stems, pdf, lo, hi, fractions, weight > 0))
+        apex = v[:, _I["apex_density"]]
+        if np.any(apex > 0):  # physical rows with apex trees have a finite cap
+            top = np.where(capped, cap, 1.0)
+            out.append(Cohort(apex, _uniform_pdf, top - APEX_WIDTH, top, mix, apex > 0))
         return out
 
     @staticmethod
     def _top(cohorts):
         """Tallest tree of any active cohort (m), per row."""
-        return np.max([np.where(w > 0, hi, 0.0) for w, _, _, hi in cohorts], axis=0)
+        return np.max([np.where(c.present, c.hi, 0.0) for c in cohorts], axis=0)
 
     def _cohort_columns(self, v):
         f2 = v[:, _I["cohort2_fraction"]]
@@ -418,19 +471,17 @@ class ExpectedWaveformModel:
         (n, height_nodes), lo (n,), step (n,), stems (n,) and the radial nodes' weights
         (n, J) (shape fractions times quadrature weights)."""
         nh = self.settings.height_nodes
-        mix = v[:, self._mix_index]  # cohort 1's fractions of the model's shapes
         out = []
-        for cohort, (weight, args, lo, hi) in enumerate(cohorts):
-            fractions = mix if cohort == 0 else self._mixes[1, self._shapes][None, :]
-            w = fractions[:, self._node_shape] * self._node_weight  # (n, J), or (1, J)
+        for cohort in cohorts:
+            w = cohort.fractions[:, self._node_shape] * self._node_weight  # (n, J) or (1, J)
             if not w.any():
                 continue
-            step = (hi - lo) / (nh - 1)
-            h = lo[:, None] + step[:, None] * self._unit_grid
-            pdf = self._family.fast("pdf", h, *args)
+            lo = cohort.lo
+            step = (cohort.hi - lo) / (nh - 1)
+            pdf = cohort.pdf(lo[:, None] + step[:, None] * self._unit_grid)
             if w.shape[0] != v.shape[0]:  # one mix for every row (cohort 2)
                 w = np.repeat(w, v.shape[0], axis=0)
-            out.append((pdf, lo, step, v[:, _I["density"]] * weight, w))
+            out.append((pdf, lo, step, cohort.stems, w))
         return out
 
     def _crown_columns(self, v):

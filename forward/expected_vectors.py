@@ -31,8 +31,13 @@ VECTOR_FIELDS = (
     "canopy_reflectance",
     "ground_reflectance",
     "ground_elevation",
+    "height_cap",
+    "apex_density",
     *(f"mix_{name}" for name in SHAPE_NAMES),
 )
+
+#: Fields that condition the stand on its tallest tree, with the values that do not.
+CONDITIONING_FIELDS = {"height_cap": np.inf, "apex_density": 0.0}
 
 #: Vector fields holding cohort 1's crown-shape fractions (≥ 0, summing to 1).
 MIX_FIELDS = tuple(f"mix_{name}" for name in SHAPE_NAMES)
@@ -61,9 +66,15 @@ def _bounds():
     lower, upper = np.full(len(_I), -np.inf), np.full(len(_I), np.inf)
     closed = np.ones(len(_I), bool)
     positive = ("height_mean", "height_sd", "crown_length_ratio", "crown_radius_slope", "favd")
-    for name in (*positive, "understory_height"):
+    for name in (*positive, "understory_height", "height_cap"):
         lower[_I[name]], closed[_I[name]] = 0.0, False
-    non_negative = ("density", "cohort2_fraction", "crown_radius_intercept", "understory_lai")
+    non_negative = (
+        "density",
+        "cohort2_fraction",
+        "crown_radius_intercept",
+        "understory_lai",
+        "apex_density",
+    )
     for name in (*non_negative, "canopy_reflectance", "ground_reflectance", *MIX_FIELDS):
         lower[_I[name]] = 0.0
     upper[_I["cohort2_fraction"]] = upper[_I["crown_length_ratio"]] = 1.0
@@ -79,14 +90,17 @@ def physical_rows(v, family, truncation):
     Parameters
     ----------
     v : array (n, len(VECTOR_FIELDS))
-        Full parameter vectors; NaN and infinite entries make a row invalid.
+        Full parameter vectors; NaN and infinite entries make a row invalid, but for an
+        infinite ``height_cap`` (no cap) without apex trees.
     family : forward.stand_params.HeightFamily
         Height family of both cohorts.
     truncation : float (sd units)
         Truncation of the ``truncnorm`` family.
     """
     finite = np.isfinite(v)
-    ok = finite.all(axis=1)
+    uncapped = v[:, _I["height_cap"]] == np.inf
+    finite[:, _I["height_cap"]] |= uncapped
+    ok = finite.all(axis=1) & ~(uncapped & (v[:, _I["apex_density"]] > 0))
     v = np.where(finite, v, 1.0)
     above = (v > _LOWER) | ((v == _LOWER) & _CLOSED)
     ok &= np.all(above & (v <= _UPPER), axis=1)
@@ -109,6 +123,9 @@ def params_from_vector(full, template: StandParams) -> tuple[StandParams, float]
     if full.shape != (len(VECTOR_FIELDS),):
         raise ValueError(f"a full vector has {len(VECTOR_FIELDS)} values, got shape {full.shape}")
     values = dict(zip(VECTOR_FIELDS, full.tolist()))
+    for name, neutral in CONDITIONING_FIELDS.items():
+        if values.pop(name) != neutral:
+            raise ValueError(f"a stand with {name} ≠ {neutral} has no stem-map counterpart")
     ground = values.pop("ground_elevation")
     mix = tuple(values.pop(name) for name in MIX_FIELDS)
     return replace(template, shape_mix=mix, **values), ground

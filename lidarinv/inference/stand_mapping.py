@@ -18,6 +18,7 @@ import numpy as np
 
 from forward.crowns import CROWN_SHAPES
 from forward.expected import MIX_FIELDS, VECTOR_FIELDS
+from forward.expected_vectors import CONDITIONING_FIELDS
 from forward.stand_params import HEIGHT_DISTRIBUTIONS, StandParams
 
 from . import compiled_stand
@@ -25,8 +26,13 @@ from . import compiled_stand
 #: top_height = height_mean + TOP_SDS·height_sd.
 TOP_SDS = 2.0
 
-#: Expected-model vector fields the mapping fills, in order (single cohort, no mix).
-MODEL_FIELDS = tuple(f for f in VECTOR_FIELDS if not f.startswith(("cohort2_", "mix_")))
+#: Expected-model vector fields the mapping fills, in order (single cohort, no mix, the
+#: whole stand rather than one conditioned on its tallest tree).
+MODEL_FIELDS = tuple(
+    f
+    for f in VECTOR_FIELDS
+    if not f.startswith(("cohort2_", "mix_")) and f not in CONDITIONING_FIELDS
+)
 
 #: Scalar derived quantities reported per sample (units).
 DERIVED = {
