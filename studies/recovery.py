@@ -348,6 +348,11 @@ def main():
         "--sample-gain", action="store_true", help="sample the gain instead of integrating it out"
     )
     parser.add_argument(
+        "--tallest-stem",
+        action="store_true",
+        help="condition each footprint on a latent tallest stem (InversionSettings.tallest_stem)",
+    )
+    parser.add_argument(
         "--ground-prior-sd",
         type=float,
         default=None,
@@ -379,6 +384,7 @@ def main():
         discrepancy_model=args.discrepancy_model,
         marginalise_gain=not args.sample_gain,
         ground_prior_sd_m=args.ground_prior_sd,
+        tallest_stem=args.tallest_stem,
     )
     if args.ground_prior_sd is None:  # the default, or a priors file's [ground] table
         del choices["ground_prior_sd_m"]
@@ -422,6 +428,7 @@ def main():
             "map_search": {k: getattr(settings.sampler, k) for k in MAP_SEARCH_FIELDS},
             "mode_window": args.mode_window,
             "gain_marginalised": not args.sample_gain,
+            "tallest_stem": args.tallest_stem,
             "ground_prior_sd_m": args.ground_prior_sd,
             "priors_file": None if args.priors is None else str(args.priors),
             "prior_overrides": settings.describe()["priors"],

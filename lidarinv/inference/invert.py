@@ -14,6 +14,7 @@ from .problem import InversionProblem, InversionSettings, build_problem
 from .realisations import with_realisation_covariance
 from .result import QUANTILES, InversionResult
 from .sampling import SamplerRun, run_sampler
+from .stand_mapping import TALLEST_STEM_RADIUS_SIGMAS
 
 #: Posterior samples used for the predictive band and the crown-volume profile.
 _BAND_SAMPLES = 400
@@ -107,12 +108,16 @@ def footprint_top_height(problem: InversionProblem, x, density_per_ha, rng) -> n
     posterior sample: the stand's parameters fix the height distribution, and one
     footprint holds one Poisson draw of stems from it, whose tallest is drawn here.
     This, not ``top_height`` (the distribution's upper end), is what the waveform's
-    canopy top and RH98-style metrics measure."""
+    canopy top and RH98-style metrics measure. Where the posterior conditions on the
+    tallest stem, it is that latent stem's height."""
     values = problem.space.values(x)
+    mapping = problem.log_posterior.mapping
+    if mapping.conditioned:  # the latent stem itself, within the same disc
+        return mapping.model_vectors(values)[1]["tallest_stem"]
     values["density_m2"] = np.asarray(density_per_ha) * 1e-4
-    radius = 2.0 * problem.instrument.footprint_sigma_m
+    radius = TALLEST_STEM_RADIUS_SIGMAS * problem.instrument.footprint_sigma_m
     uniform = rng.uniform(size=x.shape[0])
-    return problem.log_posterior.mapping.tallest_in_area(values, np.pi * radius**2, uniform)
+    return mapping.tallest_in_area(values, np.pi * radius**2, uniform)
 
 
 def _flat(array, run: SamplerRun):

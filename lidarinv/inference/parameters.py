@@ -21,7 +21,7 @@ from .priors import (
     Uniform,
     make_prior,
 )
-from .stand_mapping import TOP_SDS
+from .stand_mapping import TALLEST_STEM, TOP_SDS
 
 
 @dataclass(frozen=True)
@@ -76,7 +76,15 @@ NUISANCE = {
     "rho_ratio": ("1", "canopy over ground reflectance ρv/ρg"),
 }
 
-UNITS = {name: units for name, (units, _) in {**STRUCTURE, **NUISANCE}.items()}
+#: Latent parameters, in the space only where the settings ask: name → (units, description).
+LATENT = {
+    TALLEST_STEM: (
+        "1",
+        "P(the footprint's tallest stem is no taller) under the stand's Poisson law",
+    ),
+}
+
+UNITS = {name: units for name, (units, _) in {**STRUCTURE, **NUISANCE, **LATENT}.items()}
 
 #: Structural priors of the default parameterisation (nuisance priors depend on the shot).
 DEFAULT_STRUCTURE_PRIORS = {
@@ -350,6 +358,7 @@ def default_space(
     overrides: dict | None = None,
     ridges=coordinates.DEFAULT_RIDGES,
     unbounded=DEFAULT_UNBOUNDED,
+    tallest_stem=False,
 ) -> ParameterSpace:
     """The default parameterisation with shot-specific nuisance priors.
 
@@ -363,6 +372,9 @@ def default_space(
         Sampling coordinates (see :class:`ParameterSpace`).
     unbounded : str
         Map of the bounded priors to the real line (see :class:`ParameterSpace`).
+    tallest_stem : bool
+        Add the latent :data:`.stand_mapping.TALLEST_STEM`, uniform on [0, 1], for a
+        mapping that conditions each footprint on its tallest stem.
     """
     priors = {**DEFAULT_STRUCTURE_PRIORS, "rho_ratio": DEFAULT_RHO_RATIO_PRIOR, **nuisance_priors}
     params = []
@@ -370,6 +382,9 @@ def default_space(
         if name not in priors:
             raise ValueError(f"no prior given for {name}")
         params.append(Parameter(name, units, priors[name], DEFAULT_FIXED.get(name), description))
+    if tallest_stem:
+        units, description = LATENT[TALLEST_STEM]
+        params.append(Parameter(TALLEST_STEM, units, Uniform(0.0, 1.0), None, description))
     space = ParameterSpace(params, ridges, unbounded)
     return space.with_changes(overrides) if overrides else space
 
@@ -405,7 +420,7 @@ def read_priors_file(path) -> dict:
             table = tomllib.load(handle)
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"{path}: not valid TOML: {error}") from None
-    known = set(STRUCTURE) | set(NUISANCE) | set(_SETTINGS_TABLES)
+    known = set(STRUCTURE) | set(NUISANCE) | set(LATENT) | set(_SETTINGS_TABLES)
     unknown = sorted(set(table) - known)
     if unknown:
         raise ValueError(f"{path}: unknown parameter(s) {unknown}; known: {sorted(known)}")

@@ -76,6 +76,12 @@ class InversionSettings:
         a pilot MAP found with ``observed`` (:mod:`.realisations`).
     realisations : RealisationSettings
         How the ``realisations`` covariance is simulated.
+    tallest_stem : bool
+        Condition the footprint on its tallest stem (within the 1/e² disc), a latent
+        parameter with a uniform prior (:class:`.stand_mapping.StandMapping`): one
+        footprint rarely holds a stem in the upper tail of the stand's heights, and a
+        Gaussian discrepancy, symmetric, cannot say so. The ``realisations`` covariance
+        then holds what remains once each stand's own tallest stem is accounted for.
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
         cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None
@@ -120,6 +126,7 @@ class InversionSettings:
     sampler: SamplerSettings = field(default_factory=SamplerSettings)
     model: ModelSettings = field(default_factory=ModelSettings)
     realisations: RealisationSettings = field(default_factory=RealisationSettings)
+    tallest_stem: bool = False
 
     @classmethod
     def from_priors_file(cls, path, **changes) -> "InversionSettings":
@@ -264,8 +271,14 @@ def build_problem(obs: Observation, settings: InversionSettings | None = None) -
         scale = settings.discrepancy if fixed_discrepancy is None else 0.0
         if gain_marginal_obstacle(window, settings.shot_factor, scale) is None:
             overrides["gain"] = {**overrides.get("gain", {}), "marginalised": True}
-    space = default_space(nuisance, overrides, settings.ridges, settings.unbounded)
-    mapping = StandMapping(default_template(settings.shape_pair), settings.shape_pair)
+    space = default_space(
+        nuisance, overrides, settings.ridges, settings.unbounded, settings.tallest_stem
+    )
+    mapping = StandMapping(
+        default_template(settings.shape_pair),
+        settings.shape_pair,
+        footprint_sigma_m=instrument.footprint_sigma_m if settings.tallest_stem else None,
+    )
     model = ExpectedWaveformModel(
         instrument,
         window.axis,

@@ -28,11 +28,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from forward.engine import AccuracySettings, WaveformSimulator
-from forward.expected_vectors import params_from_vector
+from forward.expected_vectors import CONDITIONING_FIELDS, FIELD_INDEX, params_from_vector
 from forward.realise import realise, scene_extras
 
 from .posterior import LogPosterior
 from .sampling import Mode, find_map, initial_ball
+from .stand_mapping import TALLEST_STEM
+from .synthetic import tallest_within
 
 #: The explicit engine's quadrature for the discrepancy (see ``RealisationSettings``).
 DISCREPANCY_QUADRATURE = AccuracySettings(radial_nodes=2, angular_nodes=4)
@@ -80,28 +82,44 @@ def realisation_residuals(
     """dᵢ = aᵢ·(W_explicit − W_expected) (DN), (n, bins), one explicit stand per row of
     physical parameters ``x`` (n, ndim) with a finite log-posterior.
 
-    aᵢ is the row's gain, or its least-squares fit where the gain is integrated out;
+    aᵢ is the row's gain, or its least-squares fit where the gain is integrated out.
+    Where the mapping conditions on the tallest stem, each row's latent is set to its own
+    stand's (:meth:`.stand_mapping.StandMapping.tallest_stem_quantile`), so the residuals
+    hold what that stem does not explain;
     ``accuracy`` (:class:`forward.engine.AccuracySettings`) sets the explicit engine's
     quadrature, its own default if None.
     """
     post = log_posterior
+    mapping = post.mapping
+    x = np.array(x, float)
     terms = post.evaluate(x, keep_signal=True)
     if not np.all(np.isfinite(terms.log_posterior)):
         raise ValueError("every parameter draw of the discrepancy needs a finite posterior")
     values = post.space.values(x)
-    gain = values["gain"] if terms.gain_fit is None else terms.gain_fit[:, 1]
-    vectors, _ = post.mapping.model_vectors(values)
+    vectors, derived = mapping.model_vectors(values)
     full = post.model.full_vectors(vectors)
+    full[:, [FIELD_INDEX[name] for name in CONDITIONING_FIELDS]] = list(
+        CONDITIONING_FIELDS.values()
+    )  # the whole stand, whatever stem a row's footprint is conditioned on
     side = plot_diameters * instrument.footprint_diameter_m
     centre = (side / 2, side / 2)
+    stands = []
+    for row in full:
+        params, _ = params_from_vector(row, post.model.template)
+        stands.append((params, realise(params, side, rng)))
+    if mapping.conditioned:  # each row conditioned on its own stand's tallest stem
+        sigma = instrument.footprint_sigma_m
+        tallest = [tallest_within(stand, centre, sigma) for _, stand in stands]
+        values["density_m2"] = derived["density"] * 1e-4
+        x[:, post.space.names.index(TALLEST_STEM)] = mapping.tallest_stem_quantile(values, tallest)
+        terms = post.evaluate(x, keep_signal=True)
+    gain = post.space.values(x)["gain"] if terms.gain_fit is None else terms.gain_fit[:, 1]
     simulator = WaveformSimulator(instrument, accuracy)
     axis = post.data.axis
     residuals = np.empty((x.shape[0], axis.size))
-    for i, row in enumerate(full):
-        params, ground_elevation = params_from_vector(row, post.model.template)
-        stand = realise(params, side, rng)
+    for i, ((params, stand), row) in enumerate(zip(stands, full)):
         ground, understory, rho_v = scene_extras(params)
-        heights = axis - ground_elevation
+        heights = axis - row[FIELD_INDEX["ground_elevation"]]
         explicit = simulator.simulate(stand, centre, heights, ground, rho_v, understory).samples
         residuals[i] = gain[i] * (explicit - terms.signal[i])
     return residuals

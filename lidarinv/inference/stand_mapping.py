@@ -47,6 +47,14 @@ DERIVED = {
 #: Stems per hectare whose mean height is the dominant height.
 DOMINANT_PER_HA = 100.0
 
+#: The latent parameter of a footprint conditioned on its tallest stem: U = P(the tallest
+#: stem within the disc ≤ its height) under the stand's Poisson law, uniform a priori.
+TALLEST_STEM = "tallest_stem_quantile"
+
+#: Radius (in footprint σ) of the disc whose tallest stem conditions the footprint: the
+#: 1/e² radius, holding 1 − e⁻² of the footprint's weight.
+TALLEST_STEM_RADIUS_SIGMAS = 2.0
+
 
 def default_template(shape_pair=("cone", "ellipsoid")) -> StandParams:
     """Template stand for the default parameterisation (truncated-normal heights)."""
@@ -78,9 +86,23 @@ class StandMapping:
         the rest.
     profile_nodes : int
         Nodes of the crown-volume profile, whose integrand has kinks at the crown ends.
+    footprint_sigma_m : float (m) or None
+        If set, condition each footprint on its tallest stem within the disc of radius
+        :data:`TALLEST_STEM_RADIUS_SIGMAS`·σf (area A): the parameters then include
+        :data:`TALLEST_STEM` U, the stem's height H solves S(H) = −ln U/(λA) (S the
+        height survival, λ the stem density; :meth:`tallest_in_area`), cohort 1 stops at
+        H (``height_cap``) and the stem itself is an apex cohort of (1 − e⁻²)/A stems per
+        m², its mean footprint weight spread over the plane (``apex_density``). Stems
+        outside the disc are capped too, an approximation worth e⁻² of the weight.
     """
 
-    def __init__(self, template: StandParams, shape_pair=("cone", "ellipsoid"), profile_nodes=48):
+    def __init__(
+        self,
+        template: StandParams,
+        shape_pair=("cone", "ellipsoid"),
+        profile_nodes=48,
+        footprint_sigma_m=None,
+    ):
         if template.cohort2_fraction > 0:
             raise ValueError("the default parameterisation models a single cohort")
         unknown = [s for s in shape_pair if s not in CROWN_SHAPES]
@@ -98,6 +120,16 @@ class StandMapping:
         #: model_vectors through :mod:`.compiled_stand` (truncated-normal heights only)
         self.compiled = template.height_family == "truncnorm"
         assert all(f in MIX_FIELDS for f in self.model_free[len(MODEL_FIELDS) :])
+        #: whether footprints are conditioned on their tallest stem (and its disc's area)
+        self.conditioned = footprint_sigma_m is not None
+        if self.conditioned:
+            if not (np.isfinite(footprint_sigma_m) and footprint_sigma_m > 0):
+                raise ValueError(f"footprint_sigma_m must be positive, got {footprint_sigma_m}")
+            radius = TALLEST_STEM_RADIUS_SIGMAS * float(footprint_sigma_m)
+            self.tallest_stem_area = np.pi * radius**2
+            weight = -np.expm1(-0.5 * TALLEST_STEM_RADIUS_SIGMAS**2)
+            self._apex_per_ha = 1e4 * weight / self.tallest_stem_area
+            self.model_free += tuple(CONDITIONING_FIELDS)
 
     def _quadrature(self, mean, sd):
         """Heights (n, q) and weights (n, q) of the profile's rule over the bulk of each
@@ -170,6 +202,13 @@ class StandMapping:
                 1.0 - cone,
             ]
         )
+        if self.conditioned:
+            tallest, some = self._tallest(
+                mean, v["height_sd"], lam * self.tallest_stem_area, v[TALLEST_STEM]
+            )
+            cap = np.maximum(tallest, 1e-6)  # no stem in the disc: the lowest tree's height
+            apex = np.where(some, self._apex_per_ha, 0.0)
+            vectors = np.column_stack([vectors, cap, apex])
         derived = {
             "crown_area": area,  # m², not a blob: for the discrepancy model
             "density": lam * 1e4,
@@ -179,6 +218,8 @@ class StandMapping:
             "crown_volume": volume * 1e4,
             "lai": v["pai"] + v["understory_lai"],
         }
+        if self.conditioned:  # m, 0 where the disc holds no stem
+            derived["tallest_stem"] = np.where(some, tallest, 0.0)
         return vectors, derived
 
     def _stand_columns(self, v):
@@ -226,12 +267,31 @@ class StandMapping:
         is :func:`forward.derived.expected_max_height`.
         """
         mean = v["top_height"] - TOP_SDS * v["height_sd"]
+        tallest, some = self._tallest(mean, v["height_sd"], v["density_m2"] * area, uniform)
+        return np.where(some, tallest, 0.0)
+
+    def tallest_stem_quantile(self, v, tallest) -> np.ndarray:
+        """U = exp(−λA·S(H)) of footprints whose tallest stem within the conditioning disc
+        (area A, :attr:`tallest_stem_area`) is ``tallest`` H (m, ≤ 0 where the disc holds
+        none): the inverse of the draw in :meth:`model_vectors`, for an explicit stand.
+        ``v`` holds ``density_m2`` (n,) besides the parameters. A disc without a stem gets
+        half the probability of none, e^{−λA}/2."""
+        mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
+        stems = v["density_m2"] * self.tallest_stem_area
+        tallest = np.asarray(tallest, float)
+        none = ~(tallest > 0)
+        args = self.family.arguments(mean, sd, self.truncation)
+        tail = self.family.fast("sf", np.where(none, 0.0, tallest), *args)
+        return np.where(none, 0.5 * np.exp(-stems), np.exp(-stems * tail))
+
+    def _tallest(self, mean, sd, stems, uniform):
+        """Height (m) solving S(h) = −ln U / ``stems`` (the expected stems on the area) and
+        whether any stem stands there; where none does, the lowest height of the family."""
         with np.errstate(divide="ignore"):
-            tail = -np.log(uniform) / (v["density_m2"] * area)
+            tail = -np.log(uniform) / stems
         some = tail < 1.0
-        out = np.zeros(mean.shape)
-        out[some] = self.family.isf(tail[some], mean[some], v["height_sd"][some], self.truncation)
-        return out
+        args = self.family.arguments(mean, sd, self.truncation)
+        return self.family.fast("isf", np.minimum(tail, 1.0), *args), some
 
     def _dominant_height(self, mean, sd, density):
         """Mean height of the DOMINANT_PER_HA tallest stems per hectare (all if fewer):

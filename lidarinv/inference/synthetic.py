@@ -18,7 +18,7 @@ from forward.realise import realise, scene_extras
 from forward.stand_params import StandParams
 from lidarinv.observe.simulate import observe
 
-from .stand_mapping import TOP_SDS
+from .stand_mapping import TALLEST_STEM_RADIUS_SIGMAS, TOP_SDS
 
 
 @dataclass(frozen=True)
@@ -86,9 +86,10 @@ def true_values(params: StandParams, gain: float, baseline: float, noise_sigma: 
 
 
 def tallest_within(stand, centre, footprint_sigma_m) -> float:
-    """Height (m) of the tallest stem within the footprint's 1/e² radius (2σf) of
-    ``centre``; 0 if none."""
-    inside = np.hypot(stand.x - centre[0], stand.y - centre[1]) <= 2.0 * footprint_sigma_m
+    """Height (m) of the tallest stem within the footprint's 1/e² radius
+    (:data:`.stand_mapping.TALLEST_STEM_RADIUS_SIGMAS`·σf) of ``centre``; 0 if none."""
+    radius = TALLEST_STEM_RADIUS_SIGMAS * footprint_sigma_m
+    inside = np.hypot(stand.x - centre[0], stand.y - centre[1]) <= radius
     return float(np.max(stand.height[inside], initial=0.0))
 
 
