@@ -61,14 +61,13 @@ the expected waveform of a footprint whose tallest tree is known, e.g. a latent 
 stem in the inversion; both are checked against the mean of explicit stands.
 """
 
-from collections.abc import Callable
 from functools import partial
-from typing import NamedTuple
 
 import numpy as np
 
 from . import expected_depth, expected_grid, expected_ground, expected_numba
 from .crowns import CROWN_SHAPES, SHAPE_NAMES
+from .expected_cohorts import APEX_WIDTH, Cohort, cohorts  # noqa: F401  (APEX_WIDTH re-exported)
 from .expected_settings import (
     CONVERGED,  # noqa: F401  (re-exported)
     GRID_UNDERSHOOT,
@@ -96,31 +95,6 @@ from .stand_params import HEIGHT_DISTRIBUTIONS, StandParams
 
 #: Compiled ground returns by (backend, pulse type); others take the numpy function.
 GROUND_RETURNS = {("numba", GaussianPulse): expected_numba.gaussian_ground_return}
-
-#: Height span (m) of the apex trees, which stand on the last APEX_WIDTH below the cap.
-APEX_WIDTH = 0.02
-
-
-class Cohort(NamedTuple):
-    """One cohort's trees, per row: ``stems`` (stems/ha), ``pdf(h)`` their height
-    density (1/m) at heights h (n, k) on the grid span [``lo``, ``hi``] (m), the crown
-    shape ``fractions`` of the model's shapes ((n, S), or (1, S) for every row) and
-    whether the row has the cohort at all (``present``, (n,) bool)."""
-
-    stems: np.ndarray
-    pdf: Callable
-    lo: np.ndarray
-    hi: np.ndarray
-    fractions: np.ndarray
-    present: np.ndarray
-
-
-def _family_pdf(fast, args, h):
-    return fast("pdf", h, *args)
-
-
-def _uniform_pdf(h):
-    return np.ones_like(h)
 
 
 class ExpectedWaveformModel:
@@ -395,49 +369,22 @@ class ExpectedWaveformModel:
         return self._operators[nodes]
 
     def _cohorts(self, v) -> list[Cohort]:
-        """The cohorts of full vectors ``v``: cohort 1 (stopped at ``height_cap``, its
-        trees below keeping their density), cohort 2 if the model has one, and the apex
-        trees at the cap (``apex_density``) where a row has any."""
-        t, tail, fast = self.template.height_truncation, self.settings.tail, self._family.fast
-        density, cap = v[:, _I["density"]], v[:, _I["height_cap"]]
-        capped = np.isfinite(cap)
-        mix = v[:, self._mix_index]  # cohort 1's fractions of the model's shapes
-        out = []
-        for cohort, (weight, mean, sd) in enumerate(self._cohort_columns(v)):
-            shape_args, loc, scale = self._family.arguments(mean, sd, t)
-            lo = fast("ppf", tail, shape_args, loc, scale)
-            hi = np.maximum(fast("isf", tail, shape_args, loc, scale), lo + 1e-6)
-            stems = density * weight
-            if cohort == 0 and capped.any():
-                below = 1.0 - fast("sf", np.where(capped, cap, hi), shape_args, loc, scale)
-                stems = np.where(capped, stems * np.clip(below, 0.0, 1.0), stems)
-                hi = np.where(capped, np.maximum(np.minimum(hi, cap), lo + 1e-6), hi)
-            column = tuple(np.asarray(x, float)[..., None] for x in shape_args)
-            args = (column, np.asarray(loc, float)[..., None], scale[:, None])
-            pdf = partial(_family_pdf, fast, args)
-            fractions = mix if cohort == 0 else self._mixes[1, self._shapes][None, :]
-            out.append(Cohort(stems, pdf, lo, hi, fractions, weight > 0))
-        apex = v[:, _I["apex_density"]]
-        if np.any(apex > 0):  # physical rows with apex trees have a finite cap
-            top = np.where(capped, cap, 1.0)
-            out.append(Cohort(apex, _uniform_pdf, top - APEX_WIDTH, top, mix, apex > 0))
-        return out
+        """The cohorts of full vectors ``v`` (:func:`forward.expected_cohorts.cohorts`)."""
+        two = self.template.cohort2_fraction > 0 or "cohort2_fraction" in self.parameter_names
+        return cohorts(
+            v,
+            self._family,
+            self.template.height_truncation,
+            self.settings.tail,
+            self._mix_index,
+            self._mixes[1, self._shapes][None, :],
+            two,
+        )
 
     @staticmethod
     def _top(cohorts):
         """Tallest tree of any active cohort (m), per row."""
         return np.max([np.where(c.present, c.hi, 0.0) for c in cohorts], axis=0)
-
-    def _cohort_columns(self, v):
-        f2 = v[:, _I["cohort2_fraction"]]
-        yield 1.0 - f2, v[:, _I["height_mean"]], v[:, _I["height_sd"]]
-        if self.template.cohort2_fraction > 0 or "cohort2_fraction" in self.parameter_names:
-            safe = f2 > 0
-            yield (
-                f2,
-                np.where(safe, v[:, _I["cohort2_height_mean"]], 1.0),
-                np.where(safe, v[:, _I["cohort2_height_sd"]], 0.1),
-            )
 
     def _gap(self, v, z, cohorts=None):
         """E[P] at heights z (n, e) above the ground, for full vectors v (n, …)."""
