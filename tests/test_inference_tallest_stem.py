@@ -143,3 +143,14 @@ def test_residuals_are_taken_against_each_stands_own_tallest_stem(problem, shot,
     x_plain = np.delete(x, space.names.index(TALLEST_STEM), axis=1)
     residuals = realisation_residuals(plain.log_posterior, plain.instrument, x_plain, rng)
     assert np.max(-residuals[:, above]) > 0.01 * np.max(np.abs(residuals))
+
+
+def test_a_priors_file_table_turns_the_latent_on(tmp_path, shot):
+    path = tmp_path / "priors.toml"
+    path.write_text("[tallest_stem_quantile]\nfree = true\n")
+    settings = InversionSettings.from_priors_file(path)
+    assert settings.tallest_stem
+    assert TALLEST_STEM in build_problem(shot, settings).space.names
+    path.write_text("[tallest_stem_quantile]\nfixed = 0.5\n")
+    fixed = build_problem(shot, InversionSettings.from_priors_file(path))
+    assert TALLEST_STEM not in fixed.space.names and fixed.log_posterior.mapping.conditioned

@@ -413,7 +413,9 @@ def read_priors_file(path) -> dict:
     ``model`` (``realisations``, ``observed`` or ``model``), ``eta`` (η) and ``count``
     (realisations) chooses the model-discrepancy term (``InversionSettings.
     discrepancy_model``, ``discrepancy``, ``realisations.count``); it is returned under
-    the key ``"discrepancy"`` as a dict of those keys.
+    the key ``"discrepancy"`` as a dict of those keys. A ``[tallest_stem_quantile]``
+    table (e.g. ``free = true``) conditions each footprint on its tallest stem
+    (``InversionSettings.tallest_stem``).
     """
     try:
         with open(path, "rb") as handle:

@@ -83,7 +83,7 @@ def realisation_residuals(
     physical parameters ``x`` (n, ndim) with a finite log-posterior.
 
     aᵢ is the row's gain, or its least-squares fit where the gain is integrated out.
-    Where the mapping conditions on the tallest stem, each row's latent is set to its own
+    Where the latent tallest stem is sampled, each row's latent is set to its own
     stand's (:meth:`.stand_mapping.StandMapping.tallest_stem_quantile`), so the residuals
     hold what that stem does not explain;
     ``accuracy`` (:class:`forward.engine.AccuracySettings`) sets the explicit engine's
@@ -107,7 +107,7 @@ def realisation_residuals(
     for row in full:
         params, _ = params_from_vector(row, post.model.template)
         stands.append((params, realise(params, side, rng)))
-    if mapping.conditioned:  # each row conditioned on its own stand's tallest stem
+    if TALLEST_STEM in post.space.names:  # each row conditioned on its stand's tallest stem
         sigma = instrument.footprint_sigma_m
         tallest = [tallest_within(stand, centre, sigma) for _, stand in stands]
         values["density_m2"] = derived["density"] * 1e-4
