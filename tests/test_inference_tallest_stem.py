@@ -11,8 +11,13 @@ from lidarinv.inference import InversionSettings, build_problem
 from lidarinv.inference import realisations as realisations_module
 from lidarinv.inference.posterior import LogPosterior
 from lidarinv.inference.realisations import realisation_residuals
-from lidarinv.inference.stand_mapping import TALLEST_STEM, StandMapping, default_template
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot, tallest_within
+from lidarinv.inference.stand_mapping import (
+    TALLEST_STEM,
+    TALLEST_STEM_POSITION,
+    StandMapping,
+    default_template,
+)
+from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot, tallest_stem_within
 
 SIGMA_F = 5.5  # m, GEDI-like footprint σ
 VALUES = {
@@ -41,11 +46,13 @@ def mapping():
 
 def test_latent_stem_has_the_law_of_the_tallest_stem_of_explicit_stands(mapping, rng):
     """H drawn through a uniform latent matches the tallest stem within 2σf of the centre
-    of explicit Poisson stands (two-sample KS), and conditions the model vectors: cohort 1
-    capped at H, one stem's mean footprint weight of apex trees."""
+    of explicit Poisson stands, and so does the uniform position (two-sample KS); they
+    condition the model vectors: cohort 1 capped at H, the stem's footprint weight of
+    apex trees, on average the disc's weight over its area."""
     n = 1500
-    values = _values(n, **{TALLEST_STEM: 0.0})
+    values = _values(n, **{TALLEST_STEM: 0.0, TALLEST_STEM_POSITION: 0.0})
     values[TALLEST_STEM] = rng.uniform(size=n)
+    values[TALLEST_STEM_POSITION] = rng.uniform(size=n)
     vectors, derived = mapping.model_vectors(values)
     latent = derived["tallest_stem"]
     params = default_template().with_values(
@@ -55,20 +62,27 @@ def test_latent_stem_has_the_law_of_the_tallest_stem_of_explicit_stands(mapping,
         crown_radius_slope=VALUES["crown_radius_slope"],
     )
     side = 6.0 * SIGMA_F
-    explicit = [
-        tallest_within(realise(params, side, rng), (side / 2, side / 2), SIGMA_F) for _ in range(n)
-    ]
-    assert stats.ks_2samp(latent, explicit).pvalue > 0.01
+    explicit = np.array(
+        [
+            tallest_stem_within(realise(params, side, rng), (side / 2, side / 2), SIGMA_F)
+            for _ in range(n)
+        ]
+    )
+    assert stats.ks_2samp(latent, explicit[:, 0]).pvalue > 0.01
+    assert stats.kstest(explicit[:, 1], "uniform").pvalue > 0.01
     assert np.all(latent <= VALUES["top_height"] + 1e-9)
     column = dict(zip(mapping.model_free, vectors.T))
     np.testing.assert_allclose(column["height_cap"], latent, rtol=1e-12)
+    weight = np.exp(-2.0 * values[TALLEST_STEM_POSITION]) / (2 * np.pi * SIGMA_F**2)
+    np.testing.assert_allclose(column["apex_density"], 1e4 * weight, rtol=1e-12)
     area = np.pi * (2.0 * SIGMA_F) ** 2
-    np.testing.assert_allclose(column["apex_density"], 1e4 * (1 - np.exp(-2.0)) / area)
+    mean = np.mean(column["apex_density"])
+    assert mean == pytest.approx(1e4 * (1 - np.exp(-2.0)) / area, rel=0.05)
 
 
 def test_quantile_inverts_the_draw(mapping, rng):
     n = 200
-    values = _values(n, **{TALLEST_STEM: 0.0})
+    values = _values(n, **{TALLEST_STEM: 0.0, TALLEST_STEM_POSITION: 0.3})
     values[TALLEST_STEM] = rng.uniform(0.01, 1.0, n)
     _, derived = mapping.model_vectors(values)
     values["density_m2"] = derived["density"] * 1e-4
@@ -96,7 +110,8 @@ def problem(shot):
 
 def test_the_posterior_carries_the_latent_and_rejects_it_outside_0_1(problem, shot):
     space = problem.space
-    assert TALLEST_STEM in space.names and problem.log_posterior.mapping.conditioned
+    assert {TALLEST_STEM, TALLEST_STEM_POSITION} <= set(space.names)
+    assert problem.log_posterior.mapping.conditioned
     row = np.array([shot.truth.get(name, 0.5) for name in space.names])
     x = np.repeat(row[None, :], 4, axis=0)
     x[:, space.names.index(TALLEST_STEM)] = [0.3, 0.9, -0.1, 1.5]
@@ -140,7 +155,8 @@ def test_residuals_are_taken_against_each_stands_own_tallest_stem(problem, shot,
     assert np.max(np.abs(conditioned[:, above])) < 1e-6 * np.max(np.abs(conditioned))
     assert np.max(np.abs(conditioned)) > 0
     plain = build_problem(shot, InversionSettings())
-    x_plain = np.delete(x, space.names.index(TALLEST_STEM), axis=1)
+    latents = [space.names.index(name) for name in (TALLEST_STEM, TALLEST_STEM_POSITION)]
+    x_plain = np.delete(x, latents, axis=1)
     residuals = realisation_residuals(plain.log_posterior, plain.instrument, x_plain, rng)
     assert np.max(-residuals[:, above]) > 0.01 * np.max(np.abs(residuals))
 
@@ -154,3 +170,4 @@ def test_a_priors_file_table_turns_the_latent_on(tmp_path, shot):
     path.write_text("[tallest_stem_quantile]\nfixed = 0.5\n")
     fixed = build_problem(shot, InversionSettings.from_priors_file(path))
     assert TALLEST_STEM not in fixed.space.names and fixed.log_posterior.mapping.conditioned
+    assert TALLEST_STEM_POSITION in fixed.space.names

@@ -21,7 +21,7 @@ from .priors import (
     Uniform,
     make_prior,
 )
-from .stand_mapping import TALLEST_STEM, TOP_SDS
+from .stand_mapping import TALLEST_STEM, TALLEST_STEM_POSITION, TOP_SDS
 
 
 @dataclass(frozen=True)
@@ -81,6 +81,10 @@ LATENT = {
     TALLEST_STEM: (
         "1",
         "P(the footprint's tallest stem is no taller) under the stand's Poisson law",
+    ),
+    TALLEST_STEM_POSITION: (
+        "1",
+        "squared distance of that stem from the footprint centre over the disc's (2 sigma_f)",
     ),
 }
 
@@ -373,7 +377,7 @@ def default_space(
     unbounded : str
         Map of the bounded priors to the real line (see :class:`ParameterSpace`).
     tallest_stem : bool
-        Add the latent :data:`.stand_mapping.TALLEST_STEM`, uniform on [0, 1], for a
+        Add the latents :data:`LATENT` of the tallest stem, uniform on [0, 1], for a
         mapping that conditions each footprint on its tallest stem.
     """
     priors = {**DEFAULT_STRUCTURE_PRIORS, "rho_ratio": DEFAULT_RHO_RATIO_PRIOR, **nuisance_priors}
@@ -383,8 +387,8 @@ def default_space(
             raise ValueError(f"no prior given for {name}")
         params.append(Parameter(name, units, priors[name], DEFAULT_FIXED.get(name), description))
     if tallest_stem:
-        units, description = LATENT[TALLEST_STEM]
-        params.append(Parameter(TALLEST_STEM, units, Uniform(0.0, 1.0), None, description))
+        for name, (units, description) in LATENT.items():
+            params.append(Parameter(name, units, Uniform(0.0, 1.0), None, description))
     space = ParameterSpace(params, ridges, unbounded)
     return space.with_changes(overrides) if overrides else space
 
@@ -413,9 +417,9 @@ def read_priors_file(path) -> dict:
     ``model`` (``realisations``, ``observed`` or ``model``), ``eta`` (η) and ``count``
     (realisations) chooses the model-discrepancy term (``InversionSettings.
     discrepancy_model``, ``discrepancy``, ``realisations.count``); it is returned under
-    the key ``"discrepancy"`` as a dict of those keys. A ``[tallest_stem_quantile]``
-    table (e.g. ``free = true``) conditions each footprint on its tallest stem
-    (``InversionSettings.tallest_stem``).
+    the key ``"discrepancy"`` as a dict of those keys. A table for either latent of
+    :data:`LATENT` (e.g. ``[tallest_stem_quantile]`` with ``free = true``) conditions
+    each footprint on its tallest stem (``InversionSettings.tallest_stem``).
     """
     try:
         with open(path, "rb") as handle:

@@ -15,7 +15,7 @@ from .correlated import Rotation, covariance_obstacle
 from .likelihood import WindowData, row_log_likelihood
 from .marginal import GainMarginal, gain_marginal_obstacle
 from .parameters import ParameterSpace
-from .stand_mapping import DERIVED, TALLEST_STEM, StandMapping
+from .stand_mapping import DERIVED, TALLEST_STEM_LATENTS, StandMapping
 
 #: Blob columns after the log-probability: model-waveform RH metrics, then DERIVED.
 BLOB_NAMES = ("rh50", "rh98", *DERIVED)
@@ -97,10 +97,10 @@ class LogPosterior:
     ):
         if tuple(model.parameter_names) != tuple(mapping.model_free):
             raise ValueError("the expected model must be built with free=mapping.model_free")
-        if mapping.conditioned != (TALLEST_STEM in space.by_name):
+        if any(mapping.conditioned != (name in space.by_name) for name in TALLEST_STEM_LATENTS):
             raise ValueError(
-                f"a mapping conditioned on the tallest stem needs {TALLEST_STEM} in the "
-                "parameter space, and only such a mapping can use it"
+                f"a mapping conditioned on the tallest stem needs {TALLEST_STEM_LATENTS} in "
+                "the parameter space, and only such a mapping can use them"
             )
         if model.heights.shape != data.axis.shape:
             raise ValueError("the expected model's heights do not match the window's axis")

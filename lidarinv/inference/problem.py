@@ -20,7 +20,7 @@ from .posterior import LogPosterior
 from .priors import DEFAULT_UNBOUNDED, LogUniform, TruncatedNormal, Uniform
 from .realisations import RealisationSettings
 from .sampling import SamplerSettings
-from .stand_mapping import TALLEST_STEM, StandMapping, default_template
+from .stand_mapping import TALLEST_STEM_LATENTS, StandMapping, default_template
 
 
 @dataclass(frozen=True)
@@ -82,8 +82,8 @@ class InversionSettings:
         footprint rarely holds a stem in the upper tail of the stand's heights, and a
         Gaussian discrepancy, symmetric, cannot say so. The ``realisations`` covariance
         then holds what remains once each stand's own tallest stem is accounted for. A
-        priors file turns it on with a ``[tallest_stem_quantile]`` table (``free =
-        true``, or a prior or value for the latent).
+        priors file turns it on with a table for either latent (e.g.
+        ``[tallest_stem_quantile]`` with ``free = true``, or a prior or a value).
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
         cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None
@@ -139,7 +139,7 @@ class InversionSettings:
         ground = priors.pop("ground", None)
         if ground is not None:
             changes.setdefault("ground_prior_sd_m", ground["prior_sd"])
-        if TALLEST_STEM in priors:  # a table for the latent turns it on
+        if set(TALLEST_STEM_LATENTS) & set(priors):  # a table for a latent turns them on
             changes.setdefault("tallest_stem", True)
         discrepancy = priors.pop("discrepancy", {})
         if "model" in discrepancy:

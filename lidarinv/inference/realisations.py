@@ -33,8 +33,8 @@ from forward.realise import realise, scene_extras
 
 from .posterior import LogPosterior
 from .sampling import Mode, find_map, initial_ball
-from .stand_mapping import TALLEST_STEM
-from .synthetic import tallest_within
+from .stand_mapping import TALLEST_STEM, TALLEST_STEM_LATENTS, TALLEST_STEM_POSITION
+from .synthetic import tallest_stem_within
 
 #: The explicit engine's quadrature for the discrepancy (see ``RealisationSettings``).
 DISCREPANCY_QUADRATURE = AccuracySettings(radial_nodes=2, angular_nodes=4)
@@ -83,8 +83,9 @@ def realisation_residuals(
     physical parameters ``x`` (n, ndim) with a finite log-posterior.
 
     aᵢ is the row's gain, or its least-squares fit where the gain is integrated out.
-    Where the latent tallest stem is sampled, each row's latent is set to its own
-    stand's (:meth:`.stand_mapping.StandMapping.tallest_stem_quantile`), so the residuals
+    Where the latent tallest stem is sampled, each row's latents are set to its own
+    stand's (:meth:`.stand_mapping.StandMapping.tallest_stem_quantile`, and the stem's
+    position), so the residuals
     hold what that stem does not explain;
     ``accuracy`` (:class:`forward.engine.AccuracySettings`) sets the explicit engine's
     quadrature, its own default if None.
@@ -107,11 +108,17 @@ def realisation_residuals(
     for row in full:
         params, _ = params_from_vector(row, post.model.template)
         stands.append((params, realise(params, side, rng)))
-    if TALLEST_STEM in post.space.names:  # each row conditioned on its stand's tallest stem
+    names = post.space.names
+    if set(TALLEST_STEM_LATENTS) & set(names):  # each row on its own stand's tallest stem
         sigma = instrument.footprint_sigma_m
-        tallest = [tallest_within(stand, centre, sigma) for _, stand in stands]
-        values["density_m2"] = derived["density"] * 1e-4
-        x[:, post.space.names.index(TALLEST_STEM)] = mapping.tallest_stem_quantile(values, tallest)
+        found = np.array([tallest_stem_within(stand, centre, sigma) for _, stand in stands])
+        if TALLEST_STEM in names:
+            values["density_m2"] = derived["density"] * 1e-4
+            quantile = mapping.tallest_stem_quantile(values, found[:, 0])
+            x[:, names.index(TALLEST_STEM)] = quantile
+        if TALLEST_STEM_POSITION in names:  # none in the disc: any position
+            position = np.where(np.isnan(found[:, 1]), 0.5, found[:, 1])
+            x[:, names.index(TALLEST_STEM_POSITION)] = position
         terms = post.evaluate(x, keep_signal=True)
     gain = post.space.values(x)["gain"] if terms.gain_fit is None else terms.gain_fit[:, 1]
     simulator = WaveformSimulator(instrument, accuracy)

@@ -51,6 +51,13 @@ DOMINANT_PER_HA = 100.0
 #: stem within the disc ≤ its height) under the stand's Poisson law, uniform a priori.
 TALLEST_STEM = "tallest_stem_quantile"
 
+#: The latent position of that stem: its squared distance from the footprint centre over
+#: the disc's squared radius, uniform a priori; it sets the stem's footprint weight.
+TALLEST_STEM_POSITION = "tallest_stem_position"
+
+#: The latent parameters of a footprint conditioned on its tallest stem.
+TALLEST_STEM_LATENTS = (TALLEST_STEM, TALLEST_STEM_POSITION)
+
 #: Radius (in footprint σ) of the disc whose tallest stem conditions the footprint: the
 #: 1/e² radius, holding 1 − e⁻² of the footprint's weight.
 TALLEST_STEM_RADIUS_SIGMAS = 2.0
@@ -88,11 +95,13 @@ class StandMapping:
         Nodes of the crown-volume profile, whose integrand has kinks at the crown ends.
     footprint_sigma_m : float (m) or None
         If set, condition each footprint on its tallest stem within the disc of radius
-        :data:`TALLEST_STEM_RADIUS_SIGMAS`·σf (area A): the parameters then include
-        :data:`TALLEST_STEM` U, the stem's height H solves S(H) = −ln U/(λA) (S the
-        height survival, λ the stem density; :meth:`tallest_in_area`), cohort 1 stops at
-        H (``height_cap``) and the stem itself is an apex cohort of (1 − e⁻²)/A stems per
-        m², its mean footprint weight spread over the plane (``apex_density``). Stems
+        R = :data:`TALLEST_STEM_RADIUS_SIGMAS`·σf (area A): the parameters then include
+        the latents :data:`TALLEST_STEM_LATENTS`, U and V, both uniform a priori. The
+        stem's height H solves S(H) = −ln U/(λA) (S the height survival, λ the stem
+        density; :meth:`tallest_in_area`) and it stands at r² = V·R² from the centre.
+        Cohort 1 stops at H (``height_cap``) and the stem itself is an apex cohort whose
+        density is its footprint weight, exp(−r²/2σf²)/(2πσf²) stems per m²
+        (``apex_density``; on average over V, the disc's weight 1 − e⁻² over A). Stems
         outside the disc are capped too, an approximation worth e⁻² of the weight.
     """
 
@@ -127,8 +136,7 @@ class StandMapping:
                 raise ValueError(f"footprint_sigma_m must be positive, got {footprint_sigma_m}")
             radius = TALLEST_STEM_RADIUS_SIGMAS * float(footprint_sigma_m)
             self.tallest_stem_area = np.pi * radius**2
-            weight = -np.expm1(-0.5 * TALLEST_STEM_RADIUS_SIGMAS**2)
-            self._apex_per_ha = 1e4 * weight / self.tallest_stem_area
+            self._apex_per_ha = 1e4 / (2.0 * np.pi * float(footprint_sigma_m) ** 2)
             self.model_free += tuple(CONDITIONING_FIELDS)
 
     def _quadrature(self, mean, sd):
@@ -207,7 +215,8 @@ class StandMapping:
                 mean, v["height_sd"], lam * self.tallest_stem_area, v[TALLEST_STEM]
             )
             cap = np.maximum(tallest, 1e-6)  # no stem in the disc: the lowest tree's height
-            apex = np.where(some, self._apex_per_ha, 0.0)
+            weight = np.exp(-0.5 * TALLEST_STEM_RADIUS_SIGMAS**2 * v[TALLEST_STEM_POSITION])
+            apex = np.where(some, self._apex_per_ha * weight, 0.0)
             vectors = np.column_stack([vectors, cap, apex])
         derived = {
             "crown_area": area,  # m², not a blob: for the discrepancy model

@@ -88,9 +88,19 @@ def true_values(params: StandParams, gain: float, baseline: float, noise_sigma: 
 def tallest_within(stand, centre, footprint_sigma_m) -> float:
     """Height (m) of the tallest stem within the footprint's 1/e² radius
     (:data:`.stand_mapping.TALLEST_STEM_RADIUS_SIGMAS`·σf) of ``centre``; 0 if none."""
+    return tallest_stem_within(stand, centre, footprint_sigma_m)[0]
+
+
+def tallest_stem_within(stand, centre, footprint_sigma_m) -> tuple[float, float]:
+    """Height (m) of the tallest stem within the footprint's 1/e² radius R of ``centre``
+    and its squared distance from it over R²; (0, NaN) if none."""
     radius = TALLEST_STEM_RADIUS_SIGMAS * footprint_sigma_m
-    inside = np.hypot(stand.x - centre[0], stand.y - centre[1]) <= radius
-    return float(np.max(stand.height[inside], initial=0.0))
+    r2 = ((stand.x - centre[0]) ** 2 + (stand.y - centre[1]) ** 2) / radius**2
+    inside = np.flatnonzero(r2 <= 1.0)
+    if inside.size == 0:
+        return 0.0, np.nan
+    tallest = inside[np.argmax(stand.height[inside])]
+    return float(stand.height[tallest]), float(r2[tallest])
 
 
 def synthetic_shot(
