@@ -55,8 +55,9 @@ pulse(z_j − g), for a Gaussian or a measured pulse alike. Slopes are not model
 
 Conditioning on the tallest tree. ``height_cap`` H stops cohort 1 at H: its trees below
 keep their intensity, λ·f(h) for h ≤ H, so the cohort holds λ·F(H) stems on a grid ending
-at H. ``apex_density`` adds a cohort of that many stems per hectare, in cohort 1's shape
-mix, with heights spread evenly over the :data:`APEX_WIDTH` below H. Together they give
+at H. ``apex_density`` adds that many stems per hectare, in cohort 1's shape mix, all of
+height H: their depth is the closed form Σ_j w_j·λ_H·π·Rc(H)²·(1 − e^{−κu_j·c_j(z)}),
+c_j(z) the chord of node j above z (:mod:`forward.expected_cohorts`). Together they give
 the expected waveform of a footprint whose tallest tree is known, e.g. a latent tallest
 stem in the inversion; both are checked against the mean of explicit stands.
 """
@@ -67,7 +68,7 @@ import numpy as np
 
 from . import expected_depth, expected_grid, expected_ground, expected_numba
 from .crowns import CROWN_SHAPES, SHAPE_NAMES
-from .expected_cohorts import APEX_WIDTH, Cohort, cohorts  # noqa: F401  (APEX_WIDTH re-exported)
+from .expected_cohorts import Cohort, cohorts
 from .expected_settings import (
     CONVERGED,  # noqa: F401  (re-exported)
     GRID_UNDERSHOOT,
@@ -344,8 +345,9 @@ class ExpectedWaveformModel:
         densities = self._cohort_densities(v, cohorts) if self.backend == "numba" else None
         if densities:  # one compiled call from the depth grid to the samples
             return expected_numba.grid_canopy(
-                densities, *self._crown_columns(v), z0, step, nodes, operator, shift, scale_u,
-                top_u, self.layer_height, self.heights.size, GRID_UNDERSHOOT,
+                densities, self._point_masses(v, cohorts), *self._crown_columns(v), z0, step,
+                nodes, operator, shift, scale_u, top_u, self.layer_height, self.heights.size,
+                GRID_UNDERSHOOT,
             )  # fmt: skip
         z = z0[:, None] + step * np.arange(nodes)
         np.maximum(z, 0.0, out=z)
@@ -421,7 +423,7 @@ class ExpectedWaveformModel:
         out = []
         for cohort in cohorts:
             w = cohort.fractions[:, self._node_shape] * self._node_weight  # (n, J) or (1, J)
-            if not w.any():
+            if cohort.pdf is None or not w.any():  # point masses: see _point_masses
                 continue
             lo = cohort.lo
             step = (cohort.hi - lo) / (nh - 1)
@@ -430,6 +432,16 @@ class ExpectedWaveformModel:
                 w = np.repeat(w, v.shape[0], axis=0)
             out.append((pdf, lo, step, cohort.stems, w))
         return out
+
+    def _point_masses(self, v, cohorts):
+        """(stems (n,), height (n,), w (n, J)) of the cohorts of trees all of one height
+        per row (the apex trees), or None."""
+        points = [c for c in cohorts if c.pdf is None]
+        if not points:
+            return None
+        (point,) = points
+        w = point.fractions[:, self._node_shape] * self._node_weight
+        return point.stems, point.hi, np.broadcast_to(w, (v.shape[0], w.shape[1]))
 
     def _crown_columns(self, v):
         """What the compiled depth kernels take besides the densities: r0, r1, the crown
@@ -462,10 +474,14 @@ class ExpectedWaveformModel:
         """
         depth = np.zeros_like(z)
         densities = self._cohort_densities(v, cohorts)
+        points = self._point_masses(v, cohorts)
         if self.backend == "numba":
             columns = self._crown_columns(v)
             for pdf, lo, step, stems, w in densities:
                 expected_numba.add_cohort_depth(pdf, lo, step, stems, *columns, w, z, depth)
+            if points is not None:
+                stems, height, w = points
+                expected_numba.add_point_depth(stems, height, *columns, w, z, depth)
             return depth
         c = v[:, _I["crown_length_ratio"]]
         a = np.maximum(1.0 - c[:, None] + c[:, None] * self._s_lo, 1e-12)  # (n, J)
@@ -479,4 +495,8 @@ class ExpectedWaveformModel:
             scale = (np.pi / 1e4) * stems / np.where(norm > 0, norm, 1.0)
             g = scale[:, None] * radius**2 * pdf
             self._add_depth(g, lo, step, a, b, ku, w, z, depth)
+        if points is not None:
+            stems, height, w = points
+            g = (np.pi / 1e4) * stems * (r0 + r1 * height) ** 2
+            expected_depth.add_point_depth(g, height, a, b, ku, w, z, depth)
         return depth

@@ -4,8 +4,9 @@ Cohort 1 follows the vector's height distribution and crown mix; cohort 2, where
 model has one, its own distribution and the template's mix. Conditioning on the tallest
 tree (:data:`forward.expected_vectors.CONDITIONING_FIELDS`) stops cohort 1 at
 ``height_cap`` H, its trees below keeping their intensity λ·f(h) (so λ·F(H) stems on a
-grid ending at H), and adds ``apex_density`` stems per hectare in cohort 1's mix, spread
-evenly over the :data:`APEX_WIDTH` below H.
+grid ending at H), and adds ``apex_density`` stems per hectare in cohort 1's mix, all of
+height H: a point mass, whose optical depth is a closed form
+(:func:`forward.expected_depth.add_point_depth`).
 """
 
 from collections.abc import Callable
@@ -16,18 +17,16 @@ import numpy as np
 
 from .expected_vectors import FIELD_INDEX as _I
 
-#: Height span (m) of the apex trees, which stand on the last APEX_WIDTH below the cap.
-APEX_WIDTH = 0.02
-
 
 class Cohort(NamedTuple):
     """One cohort's trees, per row: ``stems`` (stems/ha), ``pdf(h)`` their height
-    density (1/m) at heights h (n, k) on the grid span [``lo``, ``hi``] (m), the crown
-    shape ``fractions`` of the model's shapes ((n, S), or (1, S) for every row) and
-    whether the row has the cohort at all (``present``, (n,) bool)."""
+    density (1/m) at heights h (n, k) on the grid span [``lo``, ``hi``] (m), or None for
+    trees all of height ``hi`` (a point mass), the crown shape ``fractions`` of the
+    model's shapes ((n, S), or (1, S) for every row) and whether the row has the cohort
+    at all (``present``, (n,) bool)."""
 
     stems: np.ndarray
-    pdf: Callable
+    pdf: Callable | None
     lo: np.ndarray
     hi: np.ndarray
     fractions: np.ndarray
@@ -36,10 +35,6 @@ class Cohort(NamedTuple):
 
 def _family_pdf(fast, args, h):
     return fast("pdf", h, *args)
-
-
-def _uniform_pdf(h):
-    return np.ones_like(h)
 
 
 def _height_columns(v, two_cohorts):
@@ -99,5 +94,5 @@ def cohorts(v, family, truncation, tail, mix_index, cohort2_fractions, two_cohor
     apex = v[:, _I["apex_density"]]
     if np.any(apex > 0):  # physical rows with apex trees have a finite cap
         top = np.where(capped, cap, 1.0)
-        out.append(Cohort(apex, _uniform_pdf, top - APEX_WIDTH, top, mix, apex > 0))
+        out.append(Cohort(apex, None, top, top, mix, apex > 0))
     return out

@@ -13,6 +13,20 @@ import numpy as np
 from .expected_tables import discounted_tails, hermite_read, tail_integrals
 
 
+def add_point_depth(g, height, a, b, ku, w, z, depth):
+    """Add the depth of stems all of one height H per row to ``depth`` (n, e) in place:
+    Σ_j w_j·g·(1 − exp(−κu_j·max(0, b_j H − max(z, a_j H)))), the chord of node j above z.
+
+    ``g`` (n,) is λ·π·Rc(H)² (stems/m² times crown area, m²/m²), ``height`` H (n,) (m);
+    ``a``, ``b``, ``ku``, ``w`` and ``z`` as in :func:`add_tree_depth`.
+    """
+    top = (b * height[:, None])[:, :, None]
+    bottom = (a * height[:, None])[:, :, None]
+    chord = np.clip(top - np.maximum(z[:, None, :], bottom), 0.0, None)
+    intercepted = -np.expm1(-ku[:, :, None] * chord)
+    depth += g[:, None] * np.einsum("nj,nje->ne", w, intercepted)
+
+
 def groups(values):
     """(G, J) indicator of equal values (G distinct), or None when all differ."""
     unique, inverse = np.unique(np.round(values, 12), return_inverse=True)

@@ -248,14 +248,45 @@ def _assemble_grid(
     return out, gap0, redo
 
 
+def _point_depth(
+    stems, height, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z, depth
+):  # fmt: skip
+    """Add the depth of ``stems`` (stems/ha, (n,)) all of height ``height`` (n,) at
+    heights z (n, e) to ``depth``: per node j, g·w_j·(1 − e^{−κu_j·max(0, b_j H −
+    max(z, a_j H))}) with g = λ·π·Rc(H)², as
+    :func:`forward.expected_depth.add_point_depth` computes it."""
+    n, e = z.shape
+    for r in range(n):
+        if stems[r] <= 0.0:
+            continue
+        radius = r0[r] + r1[r] * height[r]
+        g = np.pi / 1e4 * stems[r] * radius * radius
+        c = ratio[r]
+        for j in range(s_lo.size):
+            gw = g * w[r, j]
+            if gw == 0.0:
+                continue
+            bottom = max(1.0 - c + c * s_lo[j], 1e-12) * height[r]
+            top = (1.0 - c + c * s_hi[j]) * height[r]
+            ku = extinction[r] * node_favd[j]
+            whole = -gw * np.expm1(-ku * (top - bottom))  # z below the crown: the whole chord
+            for k in range(e):
+                if z[r, k] <= bottom:
+                    depth[r, k] += whole
+                elif z[r, k] < top:
+                    depth[r, k] -= gw * np.expm1(-ku * (top - z[r, k]))
+
+
 def _grid_canopy(
-    pdf, lo, step, stems, w, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, z0, grid_step,
-    nodes, matrix, first, shift, interp, layers_to_samples, under_scale, under_top, layer, bins,
-    undershoot,
+    pdf, lo, step, stems, w, point_stems, point_height, point_w, r0, r1, ratio, s_lo, s_hi,
+    extinction, node_favd, z0, grid_step, nodes, matrix, first, shift, interp,
+    layers_to_samples, under_scale, under_top, layer, bins, undershoot,
 ):  # fmt: skip
     """The grid path in one call: each row's depth grid z0 + k·``grid_step`` (clipped at the
     ground), the optical depth of every cohort (``pdf``, ``lo``, ``step``, ``stems`` and
-    ``w`` stacked by cohort) as :func:`_cohort_depth` adds it, then :func:`_assemble_grid`."""
+    ``w`` stacked by cohort) as :func:`_cohort_depth` adds it and of the stems of one
+    height per row (``point_stems``, ``point_height``, ``point_w``; zero stems for none)
+    as :func:`_point_depth` adds it, then :func:`_assemble_grid`."""
     n = z0.size
     z = np.empty((n, nodes))
     for r in range(n):
@@ -267,6 +298,10 @@ def _grid_canopy(
             pdf[c], lo[c], step[c], stems[c], r0, r1, ratio, s_lo, s_hi, extinction,
             node_favd, w[c], z, depth,
         )  # fmt: skip
+    _point_depth(
+        point_stems, point_height, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, point_w,
+        z, depth,
+    )  # fmt: skip
     return _assemble_grid(
         depth, matrix, first, shift, interp, layers_to_samples, under_scale, under_top, z0,
         layer, bins, undershoot,
@@ -316,16 +351,18 @@ def _kernels():
         from numba import njit
 
         global _series, _cell_weights, _discounted, _hermite, _add_tree_depth
-        global _cohort_depth, _assemble_grid
+        global _cohort_depth, _assemble_grid, _point_depth
         _series = njit(cache=True)(_series)
         _cell_weights = njit(cache=True)(_cell_weights)
         _discounted = njit(cache=True)(_discounted)
         _hermite = njit(cache=True)(_hermite)
         _add_tree_depth = njit(cache=True)(_add_tree_depth)
         _cohort_depth = njit(cache=True)(_cohort_depth)
+        _point_depth = njit(cache=True)(_point_depth)
         _assemble_grid = njit(cache=True)(_assemble_grid)
         _COMPILED["cohort_depth"] = _cohort_depth
         _COMPILED["assemble_grid"] = _assemble_grid
+        _COMPILED["point_depth"] = _point_depth
         _COMPILED["grid_canopy"] = njit(cache=True)(_grid_canopy)
         _COMPILED["gaussian_ground"] = njit(cache=True)(_gaussian_ground)
     return _COMPILED
@@ -345,6 +382,15 @@ def add_cohort_depth(
     (n,), node arrays (J,), ``w`` (n, J)."""
     arrays = (pdf, lo, step, stems, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z)
     _kernels()["cohort_depth"](*(_f64(x) for x in arrays), depth)
+
+
+def add_point_depth(
+    stems, height, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z, depth
+):  # fmt: skip
+    """Compiled: add the depth of stems of one height per row (see :func:`_point_depth`)
+    at heights ``z`` (n, e) to ``depth`` (updated in place)."""
+    arrays = (stems, height, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z)
+    _kernels()["point_depth"](*(_f64(x) for x in arrays), depth)
 
 
 def assemble_grid(depth, operator, shift, under_scale, under_top, z0, layer, bins, undershoot):
@@ -369,22 +415,27 @@ def assemble_grid(depth, operator, shift, under_scale, under_top, z0, layer, bin
 
 
 def grid_canopy(
-    cohorts, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, z0, grid_step, nodes, operator,
-    shift, under_scale, under_top, layer, bins, undershoot,
+    cohorts, points, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, z0, grid_step, nodes,
+    operator, shift, under_scale, under_top, layer, bins, undershoot,
 ):  # fmt: skip
     """Compiled: the grid path's canopy samples (n, ``bins``), E[P(0)] (n,) and rows to
     recompute (n,) in one call, from the cohorts' height densities: ``cohorts`` is a list
     of (pdf (n, nodes), lo (n,), step (n,), stems (n,), w (n, J)), one per cohort with
-    trees; the depth grid starts at ``z0`` (n,) and has ``nodes`` points ``grid_step``
-    apart. The same numbers as :func:`add_cohort_depth` then :func:`assemble_grid`."""
+    trees; ``points`` the (stems (n,), height (n,), w (n, J)) of stems of one height per
+    row, or None; the depth grid starts at ``z0`` (n,) and has ``nodes`` points
+    ``grid_step`` apart. The same numbers as :func:`add_cohort_depth` and
+    :func:`add_point_depth` then :func:`assemble_grid`."""
     matrix, first, interp, layers_to_samples = operator
     if len(cohorts) == 1:  # a view with a leading axis, not a copy
         stacked = [_f64(part)[None] for part in cohorts[0]]
     else:
         stacked = [np.stack([_f64(c[i]) for c in cohorts]) for i in range(5)]
+    if points is None:
+        points = (np.zeros(z0.size), np.zeros(z0.size), np.zeros((z0.size, s_lo.size)))
     return _kernels()["grid_canopy"](
-        *stacked, _f64(r0), _f64(r1), _f64(ratio), _f64(s_lo), _f64(s_hi), _f64(extinction),
-        _f64(node_favd), _f64(z0), float(grid_step), int(nodes), _f64(matrix), int(first),
+        *stacked, *(_f64(x) for x in points), _f64(r0), _f64(r1), _f64(ratio), _f64(s_lo),
+        _f64(s_hi), _f64(extinction), _f64(node_favd), _f64(z0), float(grid_step), int(nodes),
+        _f64(matrix), int(first),
         np.ascontiguousarray(shift, dtype=np.int64), _f64(interp), _f64(layers_to_samples),
         _f64(under_scale), _f64(under_top), float(layer), int(bins), float(undershoot),
     )  # fmt: skip

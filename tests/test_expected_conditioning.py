@@ -52,12 +52,12 @@ def test_no_crown_above_the_cap_and_less_canopy_below_a_lower_one():
 
 def test_apex_trees_alone_equal_a_cohort_of_that_height():
     """No stems but apex trees at 18 m: the stand of that density whose heights all lie
-    within the apex span below 18 m (a normal of sd 5 mm truncated at ±2 sd), both on
-    the converged per-edge path (the fast grid follows each template's tallest tree)."""
+    within 0.4 mm below 18 m (a normal of sd 0.1 mm truncated at ±2 sd), both on the
+    converged per-edge path (the fast grid follows each template's tallest tree)."""
     model = _model(CONVERGED)
     theta = _rows(model, 18.0, 150.0)
     theta[0, model.parameter_names.index("density")] = 0.0
-    narrow = PARAMS.with_values(density=150.0, height_mean=17.99, height_sd=0.005)
+    narrow = PARAMS.with_values(density=150.0, height_mean=17.9998, height_sd=1e-4)
     reference = _model(CONVERGED, params=narrow)
     expected = reference(reference.vector(narrow)[None, :])
     np.testing.assert_allclose(model(theta), expected, rtol=0, atol=1e-5 * expected.max())
