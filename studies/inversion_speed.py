@@ -195,6 +195,11 @@ def main():
         default=InversionSettings().discrepancy_model,
         choices=sorted(DISCREPANCY_MODELS),
     )
+    parser.add_argument(
+        "--tallest-stem",
+        action="store_true",
+        help="condition each footprint on a latent tallest stem (InversionSettings.tallest_stem)",
+    )
     add_sampler_options(parser)
     parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
@@ -205,6 +210,7 @@ def main():
                 marginalise_gain=not args.sample_gain,
                 unbounded=args.unbounded,
                 discrepancy_model=args.discrepancy_model,
+                tallest_stem=args.tallest_stem,
             ),
             **CONFIGURATIONS[name],
         )
@@ -230,6 +236,7 @@ def main():
     summary["gain_marginalised"] = not args.sample_gain
     summary["unbounded"] = args.unbounded
     summary["discrepancy_model"] = args.discrepancy_model
+    summary["tallest_stem"] = args.tallest_stem
     summary["walkers"] = args.walkers
     summary["moves"] = [list(m) for m in sampler.moves]
     folder = Path(__file__).parent / "output" / ("inversion_speed" + args.tag)
