@@ -19,7 +19,10 @@ discrepancy is simulated instead, as the issue suggests:
 
 C enters the likelihood as a covariance, σn² I + C (:mod:`.correlated`). A shot whose
 expected stand has a tail of rare tall crowns then finds "no crown there" a likely
-departure, and one with crowns above the expected stand a likely one too.
+departure, and one with crowns above the expected stand a likely one too. With the
+latent tallest stem (``InversionSettings.tallest_stem``) each residual is taken against
+the expectation conditioned on its own stand's tallest stem, which the latent then
+explains: C keeps the spread that remains, a Gaussian one, without the skew.
 """
 
 import time
@@ -83,12 +86,12 @@ def realisation_residuals(
     physical parameters ``x`` (n, ndim) with a finite log-posterior.
 
     aᵢ is the row's gain, or its least-squares fit where the gain is integrated out.
-    Where the latent tallest stem is sampled, each row's latents are set to its own
-    stand's (:meth:`.stand_mapping.StandMapping.tallest_stem_quantile`, and the stem's
-    position), so the residuals
-    hold what that stem does not explain;
-    ``accuracy`` (:class:`forward.engine.AccuracySettings`) sets the explicit engine's
-    quadrature, its own default if None.
+    Where the latent tallest stem is sampled, each row's latents are set to those of its
+    own stand's tallest stem within the disc (its height through
+    :meth:`.stand_mapping.StandMapping.tallest_stem_quantile`, and its position), so the
+    residuals hold what that stem does not explain. ``accuracy``
+    (:class:`forward.engine.AccuracySettings`) sets the explicit engine's quadrature, its
+    own default if None.
     """
     post = log_posterior
     mapping = post.mapping
