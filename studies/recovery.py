@@ -105,7 +105,7 @@ def truth_priors(settings) -> tuple[dict, dict]:
     overrides, so that truth and inversion share one prior."""
     placeholder = Uniform(0.0, 1.0)  # the shot-specific nuisance priors are not drawn
     nuisance = {name: placeholder for name in NUISANCE if name != "rho_ratio"}
-    space = default_space(nuisance, settings.priors)
+    space = default_space(nuisance, settings.priors, tallest_stem=settings.tallest_stem)
     drawn = [space.by_name[name] for name in (*STRUCTURE, "rho_ratio")]
     priors = {p.name: p.prior for p in drawn if p.fixed is None}
     return priors, {p.name: p.fixed for p in drawn if p.fixed is not None}

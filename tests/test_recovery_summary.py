@@ -67,6 +67,18 @@ def test_truth_drawn_from_the_priors_in_effect(recovery, tmp_path):
         assert params.understory_lai == 0.0
 
 
+def test_truth_priors_accept_a_priors_file_that_sets_the_latent_stem(recovery, tmp_path):
+    """A priors file fixing a latent of the tallest stem turns it on; the truth's priors
+    are the structure's and ρv/ρg's only."""
+    from lidarinv.inference import InversionSettings
+
+    path = tmp_path / "priors.toml"
+    path.write_text("[tallest_stem_position]\nfixed = 0.42\n")
+    settings = InversionSettings.from_priors_file(path)
+    priors, fixed = recovery.truth_priors(settings)
+    assert settings.tallest_stem and "tallest_stem_position" not in {**priors, **fixed}
+
+
 def test_breakdown_finds_off_centring_where_it_is(monkeypatch):
     """Intervals centred half a width low on tall stands only: the breakdown by top
     height shows it there and nowhere else, and not by τ."""
