@@ -255,8 +255,8 @@ def _point_depth(
     heights z (n, e) to ``depth``: per node j, g·w_j·(1 − e^{−κu_j·max(0, b_j H −
     max(z, a_j H))}) with g = λ·π·Rc(H)², as
     :func:`forward.expected_depth.add_point_depth` computes it."""
-    n, e = z.shape
-    for r in range(n):
+    e = z.shape[1]
+    for r in range(stems.size):  # no rows at all where the model has no such stems
         if stems[r] <= 0.0:
             continue
         radius = r0[r] + r1[r] * height[r]
@@ -285,7 +285,7 @@ def _grid_canopy(
     """The grid path in one call: each row's depth grid z0 + k·``grid_step`` (clipped at the
     ground), the optical depth of every cohort (``pdf``, ``lo``, ``step``, ``stems`` and
     ``w`` stacked by cohort) as :func:`_cohort_depth` adds it and of the stems of one
-    height per row (``point_stems``, ``point_height``, ``point_w``; zero stems for none)
+    height per row (``point_stems``, ``point_height``, ``point_w``; empty for none)
     as :func:`_point_depth` adds it, then :func:`_assemble_grid`."""
     n = z0.size
     z = np.empty((n, nodes))
@@ -343,6 +343,9 @@ def _gaussian_ground(
 
 
 _COMPILED = {}
+
+#: The point-mass arrays of a model without such stems: no rows, so nothing is added.
+_NO_POINTS = (np.zeros(0), np.zeros(0), np.zeros((0, 0)))
 
 
 def _kernels():
@@ -431,7 +434,7 @@ def grid_canopy(
     else:
         stacked = [np.stack([_f64(c[i]) for c in cohorts]) for i in range(5)]
     if points is None:
-        points = (np.zeros(z0.size), np.zeros(z0.size), np.zeros((z0.size, s_lo.size)))
+        points = _NO_POINTS
     return _kernels()["grid_canopy"](
         *stacked, *(_f64(x) for x in points), _f64(r0), _f64(r1), _f64(ratio), _f64(s_lo),
         _f64(s_hi), _f64(extinction), _f64(node_favd), _f64(z0), float(grid_step), int(nodes),
