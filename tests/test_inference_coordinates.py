@@ -103,6 +103,18 @@ def test_understory_centroid_is_the_first_moment_of_the_return(lai, height, rati
 CENTROID = ("cover-pai", "crown-base", "ground-centroid")
 
 
+def _assert_exact_jacobian(space, u, log_jac, step=1e-6):
+    """log|det ∂x/∂u| of rows u against central finite differences."""
+    for row, expected in zip(u, log_jac):
+        jacobian = np.empty((space.ndim, space.ndim))
+        for j in range(space.ndim):
+            du = np.zeros(space.ndim)
+            du[j] = step
+            up, down = space.from_unbounded(row + du)[0], space.from_unbounded(row - du)[0]
+            jacobian[:, j] = (up[0] - down[0]) / (2 * step)
+        assert np.linalg.slogdet(jacobian)[1] == pytest.approx(expected, abs=1e-5)
+
+
 def test_space_samples_the_ground_centroid_with_exact_jacobian(nuisance_priors):
     """Round trip, and log|det ∂x/∂u| of all three coordinates against finite differences."""
     space = default_space(nuisance_priors, ridges=CENTROID)
@@ -124,15 +136,7 @@ def test_space_samples_the_ground_centroid_with_exact_jacobian(nuisance_priors):
     np.testing.assert_allclose(u[:, g], prior.to_unbounded(widened), rtol=1e-10)
     back, log_jac = space.from_unbounded(u)
     np.testing.assert_allclose(back, x, rtol=1e-10, atol=1e-12)
-    step = 1e-6
-    for row in range(5):
-        jacobian = np.empty((space.ndim, space.ndim))
-        for j in range(space.ndim):
-            du = np.zeros(space.ndim)
-            du[j] = step
-            up, down = space.from_unbounded(u[row] + du)[0], space.from_unbounded(u[row] - du)[0]
-            jacobian[:, j] = (up[0] - down[0]) / (2 * step)
-        assert np.linalg.slogdet(jacobian)[1] == pytest.approx(log_jac[row], abs=1e-5)
+    _assert_exact_jacobian(space, u[:5], log_jac[:5])
 
 
 def test_ground_centroid_reaches_the_whole_ground_prior(nuisance_priors):
@@ -191,3 +195,25 @@ def test_compiled_ridge_maps_equal_the_numpy_reference(changes, nuisance_priors)
     np.testing.assert_allclose(compiled, reference, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(jac, jac_reference, rtol=1e-12, atol=1e-10)
     assert np.isnan(compiled).any() and np.isfinite(compiled[:1000]).mean() > 0.9
+
+
+def test_space_samples_the_gap_above_the_tallest_stem_with_exact_jacobian(nuisance_priors):
+    """With the latent tallest stem, the top height's column holds ln(top − H): round
+    trip and log|det ∂x/∂u| of all four coordinates against finite differences; prior
+    candidates put the stem within the stand's height range."""
+    space = default_space(nuisance_priors, tallest_stem=True)
+    assert "tallest-stem" in space.signature()
+    top, stem, sd = (
+        space.names.index(k) for k in ("top_height", "tallest_stem_height", "height_sd")
+    )
+    x = space.sample_prior(np.random.default_rng(12), 200)
+    assert np.all((x[:, stem] < x[:, top]) & (x[:, stem] >= x[:, top] - 4.0 * x[:, sd]))
+    u = space.to_unbounded(x)
+    x, u = x[np.isfinite(u).all(axis=1)][:20], u[np.isfinite(u).all(axis=1)][:20]
+    np.testing.assert_allclose(u[:, top], np.log(x[:, top] - x[:, stem]), rtol=1e-12)
+    back, log_jac = space.from_unbounded(u)
+    np.testing.assert_allclose(back, x, rtol=1e-10, atol=1e-12)
+    _assert_exact_jacobian(space, u[:5], log_jac[:5])
+    plain = default_space(nuisance_priors, tallest_stem=True, ridges=CENTROID)
+    assert "tallest-stem" not in plain.signature()
+    np.testing.assert_allclose(plain.from_unbounded(plain.to_unbounded(x))[0], x, rtol=1e-10)

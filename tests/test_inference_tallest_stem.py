@@ -44,17 +44,25 @@ def mapping():
     return StandMapping(default_template(), footprint_sigma_m=SIGMA_F)
 
 
-def test_latent_stem_has_the_law_of_the_tallest_stem_of_explicit_stands(mapping, rng):
-    """H drawn through a uniform latent matches the tallest stem within 2σf of the centre
-    of explicit Poisson stands, and so does the uniform position (two-sample KS); they
-    condition the model vectors: cohort 1 capped at H, the stem's footprint weight of
-    apex trees, on average the disc's weight over its area."""
-    n = 1500
-    values = _values(n, **{TALLEST_STEM: 0.0, TALLEST_STEM_POSITION: 0.0})
-    values[TALLEST_STEM] = rng.uniform(size=n)
-    values[TALLEST_STEM_POSITION] = rng.uniform(size=n)
-    vectors, derived = mapping.model_vectors(values)
-    latent = derived["tallest_stem"]
+def _survival(h):
+    """S(h) of VALUES' heights: normal, mean 18 m, sd 3 m, truncated at ±2 sd."""
+    mass = stats.norm.cdf(2.0) - stats.norm.cdf(-2.0)
+    return np.clip((stats.norm.cdf(2.0) - stats.norm.cdf((h - 18.0) / 3.0)) / mass, 0, 1)
+
+
+def test_law_of_the_latent_stem_is_that_of_the_tallest_stem_of_explicit_stands(mapping, rng):
+    """The density of H, with the chance of no stem, integrates to the CDF of the tallest
+    of Poisson(λA) stems, exp(−λA·S(h)), which the tallest stem within 2σf of the centre
+    of explicit stands follows (KS); the stem's position is uniform in r²/R² there."""
+    heights = np.linspace(12.0, 24.0, 4001)
+    values = _values(heights.size, **{TALLEST_STEM_POSITION: 0.5})
+    values[TALLEST_STEM] = heights
+    _, derived = mapping.model_vectors(values)
+    stems = derived["density"][0] * 1e-4 * mapping.tallest_stem_area
+    density = np.exp(derived["tallest_stem_log_density"])
+    steps = 0.5 * (density[1:] + density[:-1]) * np.diff(heights)
+    cdf = np.exp(-stems) + np.concatenate([[0.0], np.cumsum(steps)])
+    np.testing.assert_allclose(cdf, np.exp(-stems * _survival(heights)), atol=1e-5)
     params = default_template().with_values(
         density=float(derived["density"][0]),
         height_mean=VALUES["top_height"] - 2.0 * VALUES["height_sd"],
@@ -65,14 +73,24 @@ def test_latent_stem_has_the_law_of_the_tallest_stem_of_explicit_stands(mapping,
     explicit = np.array(
         [
             tallest_stem_within(realise(params, side, rng), (side / 2, side / 2), SIGMA_F)
-            for _ in range(n)
+            for _ in range(1500)
         ]
     )
-    assert stats.ks_2samp(latent, explicit[:, 0]).pvalue > 0.01
+    assert stats.kstest(explicit[:, 0], lambda h: np.interp(h, heights, cdf)).pvalue > 0.01
     assert stats.kstest(explicit[:, 1], "uniform").pvalue > 0.01
-    assert np.all(latent <= VALUES["top_height"] + 1e-9)
+
+
+def test_latent_stem_conditions_the_model_vectors(mapping, rng):
+    """Cohort 1 is capped at H and the stem is an apex cohort of its footprint weight,
+    on average over the position the disc's weight over its area."""
+    n = 1000
+    values = _values(n, **{TALLEST_STEM: 0.0, TALLEST_STEM_POSITION: 0.0})
+    values[TALLEST_STEM] = rng.uniform(13.0, 24.0, n)
+    values[TALLEST_STEM_POSITION] = rng.uniform(size=n)
+    vectors, derived = mapping.model_vectors(values)
     column = dict(zip(mapping.model_free, vectors.T))
-    np.testing.assert_allclose(column["height_cap"], latent, rtol=1e-12)
+    np.testing.assert_array_equal(column["height_cap"], values[TALLEST_STEM])
+    np.testing.assert_array_equal(derived["tallest_stem"], values[TALLEST_STEM])
     weight = np.exp(-2.0 * values[TALLEST_STEM_POSITION]) / (2 * np.pi * SIGMA_F**2)
     np.testing.assert_allclose(column["apex_density"], 1e4 * weight, rtol=1e-12)
     area = np.pi * (2.0 * SIGMA_F) ** 2
@@ -80,22 +98,20 @@ def test_latent_stem_has_the_law_of_the_tallest_stem_of_explicit_stands(mapping,
     assert mean == pytest.approx(1e4 * (1 - np.exp(-2.0)) / area, rel=0.05)
 
 
-def test_quantile_inverts_the_draw(mapping, rng):
-    n = 200
-    values = _values(n, **{TALLEST_STEM: 0.0, TALLEST_STEM_POSITION: 0.3})
-    values[TALLEST_STEM] = rng.uniform(0.01, 1.0, n)
-    _, derived = mapping.model_vectors(values)
-    values["density_m2"] = derived["density"] * 1e-4
-    back = mapping.tallest_stem_quantile(values, derived["tallest_stem"])
-    np.testing.assert_allclose(back, values[TALLEST_STEM], rtol=1e-9)
-    # a disc without a stem: below the chance of none, and no stem in the model either
-    none = mapping.tallest_stem_quantile(values, np.zeros(n))
-    stems = derived["density"] * 1e-4 * mapping.tallest_stem_area
-    assert np.all((none > 0) & (none < np.exp(-stems)))
-    values[TALLEST_STEM] = none
+def test_no_stem_and_heights_off_the_support(mapping):
+    """H in [−1, 0] m is a disc without a stem, of probability e^{−λA} spread over that
+    metre: no apex and no tree below the cap. Heights the stand cannot hold have density
+    zero: above its top, between 0 and its lowest tree, and below −1 m."""
+    values = _values(6, **{TALLEST_STEM_POSITION: 0.3})
+    values[TALLEST_STEM] = np.array([-0.5, -1.0, 24.5, 5.0, -1.5, 23.9])
     vectors, derived = mapping.model_vectors(values)
-    assert np.all(derived["tallest_stem"] == 0.0)
-    assert np.all(vectors[:, mapping.model_free.index("apex_density")] == 0.0)
+    stems = derived["density"] * 1e-4 * mapping.tallest_stem_area
+    law = derived["tallest_stem_log_density"]
+    np.testing.assert_allclose(law[:2], -stems[:2], rtol=1e-12)
+    assert np.all(law[2:5] == -np.inf) and np.isfinite(law[5])
+    assert np.all(derived["tallest_stem"][:2] == 0.0)
+    assert np.all(vectors[:2, mapping.model_free.index("apex_density")] == 0.0)
+    assert np.all(vectors[:2, mapping.model_free.index("height_cap")] < 1e-3)
 
 
 @pytest.fixture(scope="module")
@@ -105,18 +121,39 @@ def shot():
 
 @pytest.fixture(scope="module")
 def problem(shot):
-    return build_problem(shot, InversionSettings(tallest_stem=True))
+    """The latent tallest stem with its position sampled too."""
+    free_position = {TALLEST_STEM_POSITION: {"fixed": None}}
+    return build_problem(shot, InversionSettings(tallest_stem=True, priors=free_position))
 
 
-def test_the_posterior_carries_the_latent_and_rejects_it_outside_0_1(problem, shot):
+def test_position_is_held_at_the_discs_mean_weight_by_default(shot):
+    space = build_problem(shot, InversionSettings(tallest_stem=True)).space
+    assert TALLEST_STEM in space.names and TALLEST_STEM_POSITION not in space.names
+    held = space.by_name[TALLEST_STEM_POSITION].fixed
+    assert np.exp(-2.0 * held) == pytest.approx(0.5 * (1.0 - np.exp(-2.0)), rel=1e-12)
+
+
+def test_the_posterior_carries_the_law_of_the_latent(problem, shot):
+    """The log-prior holds the stem's law given the stand (not its sampled range), and a
+    stem above the stand's top or a position outside [0, 1] has no density."""
     space = problem.space
     assert {TALLEST_STEM, TALLEST_STEM_POSITION} <= set(space.names)
-    assert problem.log_posterior.mapping.conditioned
+    post = problem.log_posterior
+    assert post.mapping.conditioned
+    top = shot.truth["top_height"]
     row = np.array([shot.truth.get(name, 0.5) for name in space.names])
-    x = np.repeat(row[None, :], 4, axis=0)
-    x[:, space.names.index(TALLEST_STEM)] = [0.3, 0.9, -0.1, 1.5]
-    log_post = problem.log_posterior.evaluate(x).log_posterior
-    assert np.all(np.isfinite(log_post[:2])) and np.all(log_post[2:] == -np.inf)
+    x = np.repeat(row[None, :], 5, axis=0)
+    stem, position = space.names.index(TALLEST_STEM), space.names.index(TALLEST_STEM_POSITION)
+    x[:, stem] = [top - 1.0, top - 0.2, top + 0.1, top - 0.2, top - 0.2]
+    x[:, position] = [0.5, 0.5, 0.5, -0.1, 1.2]
+    terms = post.evaluate(x)
+    assert np.all(np.isfinite(terms.log_posterior[:2])) and np.all(
+        terms.log_posterior[2:] == -np.inf
+    )
+    _, derived = post.mapping.model_vectors(space.values(x[:2]))
+    law = derived["tallest_stem_log_density"]
+    assert terms.log_prior[1] - terms.log_prior[0] == pytest.approx(law[1] - law[0], rel=1e-9)
+    assert law[1] > law[0]  # in a dense stand the disc's tallest stem is near the top
     unconditioned = build_problem(shot, InversionSettings())
     with pytest.raises(ValueError, match=TALLEST_STEM):
         LogPosterior(space, unconditioned.log_posterior.mapping, *_rest(unconditioned))
@@ -147,6 +184,7 @@ def test_residuals_are_taken_against_each_stands_own_tallest_stem(problem, shot,
     space = problem.space
     row = np.array([shot.truth.get(name, 0.5) for name in space.names])
     row[space.names.index("top_height")] = 24.0
+    row[space.names.index(TALLEST_STEM)] = 20.0  # a pilot's stem, replaced by the stand's
     x = np.repeat(row[None, :], 2, axis=0)
     rng = np.random.default_rng(1)
     conditioned = realisation_residuals(problem.log_posterior, problem.instrument, x, rng)
@@ -163,11 +201,19 @@ def test_residuals_are_taken_against_each_stands_own_tallest_stem(problem, shot,
 
 def test_a_priors_file_table_turns_the_latent_on(tmp_path, shot):
     path = tmp_path / "priors.toml"
-    path.write_text("[tallest_stem_quantile]\nfree = true\n")
+    path.write_text("[tallest_stem_height]\nfree = true\n")
     settings = InversionSettings.from_priors_file(path)
     assert settings.tallest_stem
     assert TALLEST_STEM in build_problem(shot, settings).space.names
-    path.write_text("[tallest_stem_quantile]\nfixed = 0.5\n")
+    path.write_text("[tallest_stem_height]\nfixed = 20.0\n")
     fixed = build_problem(shot, InversionSettings.from_priors_file(path))
     assert TALLEST_STEM not in fixed.space.names and fixed.log_posterior.mapping.conditioned
-    assert TALLEST_STEM_POSITION in fixed.space.names
+    path.write_text("[tallest_stem_position]\nfree = true\n")
+    free = build_problem(shot, InversionSettings.from_priors_file(path))
+    assert {TALLEST_STEM, TALLEST_STEM_POSITION} <= set(free.space.names)
+    path.write_text(
+        '[tallest_stem_height]\nkind = "truncated-normal"\nmean = 20.0\nsd = 1.0\n'
+        "lower = 0.0\nupper = 40.0\n"
+    )
+    with pytest.raises(ValueError, match="uniform range"):
+        build_problem(shot, InversionSettings.from_priors_file(path))

@@ -43,17 +43,25 @@ canopy gaps common to both parts, r = ρv/ρg, q = a·Lu):
 zg = c − f at fixed (Lu, hu, r) has |∂zg/∂c| = 1. The centroid's unbounded map spans the
 ground prior's range widened upwards by the largest f (f ≤ hu), so that every ground
 elevation in the prior stays reachable.
+
+**Top height** against the footprint's tallest stem H (the latent of a footprint
+conditioned on it, :class:`.stand_mapping.StandMapping`). The waveform sees H, and the
+stand's top lies above it by a gap whose law, near the top, is close to exponential with
+its mode at zero. In (top, H) the posterior is a wedge, top ≥ H, densest along its edge.
+Sampling g = ln(top − H) instead of top opens the wedge into a smooth, one-humped density
+along g at fixed H; top = H + e^g has |∂top/∂g| = e^g.
 """
 
 import numpy as np
 from scipy.special import expit, lambertw
 
 #: Ridge-straightening coordinates by name (see :class:`.parameters.ParameterSpace`).
-RIDGE_COORDINATES = ("cover-pai", "crown-base", "ground-centroid")
+RIDGE_COORDINATES = ("cover-pai", "crown-base", "ground-centroid", "tallest-stem")
 
 #: Those used by default: all three. On six GEDI shots (``studies/sampling_coordinates.py``)
 #: the ground centroid halved the median largest τ (184 → 99 steps); the crown base then
-#: shortened the slowest shots' τ, now in the crown parameters (worst 193 → 134).
+#: shortened the slowest shots' τ, now in the crown parameters (worst 193 → 134). The
+#: tallest stem's gap applies only where that latent is sampled.
 DEFAULT_RIDGES = RIDGE_COORDINATES
 
 #: a in 1 − exp(−a·Lc): G·Ω for a spherical leaf-angle distribution and no clumping.
@@ -172,3 +180,16 @@ def understory_centroid(lai, height, rho_ratio, slope=INTERCEPTION_SLOPE):
         moment = np.where(q > 0, 1.0 - intercepted / q, 0.0)
         centroid = height * rho_ratio * moment / (rho_ratio * intercepted + np.exp(-q))
     return np.where(q > 0, centroid, 0.0)
+
+
+def top_from_stem_gap(tallest, log_gap):
+    """Top height (m) = H + e^g from the tallest stem's height H (m) and the log gap g,
+    and log|∂top/∂g| = g."""
+    return tallest + np.exp(log_gap), np.asarray(log_gap, float)
+
+
+def stem_gap_from_top(top, tallest):
+    """g = ln(top − H), the inverse of :func:`top_from_stem_gap` (NaN where top ≤ H)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gap = np.asarray(top, float) - tallest
+        return np.where(gap > 0, np.log(np.where(gap > 0, gap, 1.0)), np.nan)

@@ -21,7 +21,13 @@ from .priors import (
     Uniform,
     make_prior,
 )
-from .stand_mapping import TALLEST_STEM, TALLEST_STEM_POSITION, TOP_SDS
+from .stand_mapping import (
+    NO_STEM_DEPTH_M,
+    TALLEST_STEM,
+    TALLEST_STEM_MEAN_POSITION,
+    TALLEST_STEM_POSITION,
+    TOP_SDS,
+)
 
 
 @dataclass(frozen=True)
@@ -79,8 +85,8 @@ NUISANCE = {
 #: Latent parameters, in the space only where the settings ask: name → (units, description).
 LATENT = {
     TALLEST_STEM: (
-        "1",
-        "P(the footprint's tallest stem is no taller) under the stand's Poisson law",
+        "m",
+        "height of the footprint's tallest stem (within 2 sigma_f); <= 0 for none",
     ),
     TALLEST_STEM_POSITION: (
         "1",
@@ -107,8 +113,11 @@ DEFAULT_STRUCTURE_PRIORS = {
 #: default): tree crowns hold about 0.05–3 m²/m³ (the paper's jack pine 0.8).
 PLAUSIBLE_FAVD_RANGE = (0.05, 3.0)
 
-#: Held fixed unless a priors file frees them.
-DEFAULT_FIXED = {"crown_radius_slope": 0.1}
+#: Held fixed unless a priors file frees them. The tallest stem's position (when that
+#: latent is in the space) at its mean footprint weight: sampling it lengthened the chains
+#: by a third and changed no coverage of the required quantities (README, "The
+#: footprint's tallest stem, a latent").
+DEFAULT_FIXED = {"crown_radius_slope": 0.1, TALLEST_STEM_POSITION: TALLEST_STEM_MEAN_POSITION}
 
 #: Default prior of ρv/ρg: median 1.5 (the GEDI L2B value), a factor e^0.3 ≈ 1.35 either
 #: side at one sd; on the log scale because the data fix the product gain·ρv.
@@ -144,6 +153,8 @@ class ParameterSpace:
         - ``ground-centroid``: the centroid of the ground-plus-understory return instead
           of ``ground_elevation``, when that is free and the understory is in the space
           with a non-zero LAI (free or fixed).
+        - ``tallest-stem``: the log gap between the top height and the tallest stem
+          instead of ``top_height``, when both are free.
     unbounded : str
         Map of each bounded prior to the real line, from :data:`.priors.UNBOUNDED_MAPS`.
     """
@@ -187,6 +198,12 @@ class ParameterSpace:
             else None
         )
         self._centroid = self._centroid_map() if "ground-centroid" in self.ridges else None
+        stem = ("top_height", TALLEST_STEM)
+        self._stem = (
+            tuple(self.names.index(n) for n in stem)
+            if "tallest-stem" in self.ridges and set(stem) <= set(self.names)
+            else None
+        )
         inputs = ("top_height", "height_sd", "understory_lai", "understory_height", "rho_ratio")
         self._ridge_inputs = (  # for the compiled maps: each a column, or FIXED and a value
             np.array([self._index(n) for n in inputs], np.int64),
@@ -204,6 +221,8 @@ class ParameterSpace:
             joint += ", crown-base-v1"
         if self._centroid is not None:
             joint += ", ground-centroid-v1"
+        if self._stem is not None:
+            joint += ", tallest-stem-gap-v1"
         priors = ";".join(f"{p.name}:{p.prior.describe()}" for p in self.free)
         marginalised = "".join(f"; marginalised {name}" for name in self.marginalised)
         return f"lidarinv {self.unbounded} transforms, {joint}; {priors}{marginalised}"
@@ -237,6 +256,9 @@ class ParameterSpace:
         ``reference=True`` maps the ridge coordinates with numpy instead of compiled code."""
         u = np.atleast_2d(np.asarray(u, float))
         x, log_jac = self._priors.from_unbounded(u)
+        if self._stem is not None:  # before the crown base, which needs the top
+            top, stem = self._stem
+            x[:, top], log_jac[:, top] = coordinates.top_from_stem_gap(x[:, stem], u[:, top])
         (self._ridges_numpy if reference else self._ridges_compiled)(u, x, log_jac)
         return x, log_jac.sum(axis=1)
 
@@ -287,6 +309,9 @@ class ParameterSpace:
         if self._base is not None:
             r = self._base
             u[:, r] = coordinates.crown_base_from_ratio(x[:, r], self._mean(x))
+        if self._stem is not None:
+            top, stem = self._stem
+            u[:, top] = coordinates.stem_gap_from_top(x[:, top], x[:, stem])
         return u
 
     def _index(self, name) -> int:
@@ -330,7 +355,15 @@ class ParameterSpace:
         return self.names.index("ground_elevation"), ground.lower, (span + tallest) / span
 
     def sample_prior(self, rng, size) -> np.ndarray:
-        return np.column_stack([p.prior.sample(rng, size) for p in self.free])
+        """Draws from the free parameters' priors; a tallest stem sampled with the top
+        height is drawn uniformly over the stand's height range below it instead (its law
+        given the stand needs the stand's density: these are candidates, to be scored)."""
+        x = np.column_stack([p.prior.sample(rng, size) for p in self.free])
+        if TALLEST_STEM in self.names and "top_height" in self.by_name:
+            top = self._column(x, "top_height")
+            span = np.minimum(2.0 * TOP_SDS * self._column(x, "height_sd"), top)
+            x[:, self.names.index(TALLEST_STEM)] = top - span * rng.uniform(size=size)
+        return x
 
     def with_changes(self, changes: dict) -> "ParameterSpace":
         """A copy with per-parameter changes: ``{name: {"prior": …, "fixed": …}}``."""
@@ -377,8 +410,10 @@ def default_space(
     unbounded : str
         Map of the bounded priors to the real line (see :class:`ParameterSpace`).
     tallest_stem : bool
-        Add the latents :data:`LATENT` of the tallest stem, uniform on [0, 1], for a
-        mapping that conditions each footprint on its tallest stem.
+        Add the latents :data:`LATENT` of the tallest stem, for a mapping that conditions
+        each footprint on its tallest stem: its height, over [−NO_STEM_DEPTH_M, the top
+        height's upper bound] (the range sampled; the stand gives its law), and its
+        position, uniform on [0, 1], held at its mean weight unless freed.
     """
     priors = {**DEFAULT_STRUCTURE_PRIORS, "rho_ratio": DEFAULT_RHO_RATIO_PRIOR, **nuisance_priors}
     params = []
@@ -387,8 +422,12 @@ def default_space(
             raise ValueError(f"no prior given for {name}")
         params.append(Parameter(name, units, priors[name], DEFAULT_FIXED.get(name), description))
     if tallest_stem:
+        top = {**{"prior": priors["top_height"]}, **(overrides or {}).get("top_height", {})}
+        highest = max(top["prior"].form().upper, top.get("fixed") or 0.0)
+        ranges = {TALLEST_STEM: (-NO_STEM_DEPTH_M, highest), TALLEST_STEM_POSITION: (0.0, 1.0)}
         for name, (units, description) in LATENT.items():
-            params.append(Parameter(name, units, Uniform(0.0, 1.0), None, description))
+            prior, fixed = Uniform(*ranges[name]), DEFAULT_FIXED.get(name)
+            params.append(Parameter(name, units, prior, fixed, description))
     space = ParameterSpace(params, ridges, unbounded)
     return space.with_changes(overrides) if overrides else space
 
@@ -418,7 +457,7 @@ def read_priors_file(path) -> dict:
     (realisations) chooses the model-discrepancy term (``InversionSettings.
     discrepancy_model``, ``discrepancy``, ``realisations.count``); it is returned under
     the key ``"discrepancy"`` as a dict of those keys. A table for either latent of
-    :data:`LATENT` (e.g. ``[tallest_stem_quantile]`` with ``free = true``) conditions
+    :data:`LATENT` (e.g. ``[tallest_stem_height]`` with ``free = true``) conditions
     each footprint on its tallest stem (``InversionSettings.tallest_stem``).
     """
     try:

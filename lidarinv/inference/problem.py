@@ -77,13 +77,14 @@ class InversionSettings:
     realisations : RealisationSettings
         How the ``realisations`` covariance is simulated.
     tallest_stem : bool
-        Condition the footprint on its tallest stem (within the 1/e² disc), a latent
-        parameter with a uniform prior (:class:`.stand_mapping.StandMapping`): one
+        Condition the footprint on its tallest stem (within the 1/e² disc): latent
+        parameters for its height, whose law the stand gives, and its position
+        (:class:`.stand_mapping.StandMapping`): one
         footprint rarely holds a stem in the upper tail of the stand's heights, and a
         Gaussian discrepancy, symmetric, cannot say so. The ``realisations`` covariance
         then holds what remains once each stand's own tallest stem is accounted for. A
         priors file turns it on with a table for either latent (e.g.
-        ``[tallest_stem_quantile]`` with ``free = true``, or a prior or a value).
+        ``[tallest_stem_height]`` with ``free = true``, or a prior or a value).
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
         cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None

@@ -36,7 +36,12 @@ from forward.realise import realise, scene_extras
 
 from .posterior import LogPosterior
 from .sampling import Mode, find_map, initial_ball
-from .stand_mapping import TALLEST_STEM, TALLEST_STEM_LATENTS, TALLEST_STEM_POSITION
+from .stand_mapping import (
+    NO_STEM_DEPTH_M,
+    TALLEST_STEM,
+    TALLEST_STEM_LATENTS,
+    TALLEST_STEM_POSITION,
+)
 from .synthetic import tallest_stem_within
 
 #: The explicit engine's quadrature for the discrepancy (see ``RealisationSettings``).
@@ -87,20 +92,18 @@ def realisation_residuals(
 
     aᵢ is the row's gain, or its least-squares fit where the gain is integrated out.
     Where the latent tallest stem is sampled, each row's latents are set to those of its
-    own stand's tallest stem within the disc (its height through
-    :meth:`.stand_mapping.StandMapping.tallest_stem_quantile`, and its position), so the
-    residuals hold what that stem does not explain. ``accuracy``
+    own stand's tallest stem within the disc (its height, −NO_STEM_DEPTH_M/2 for none,
+    and its position), so the residuals hold what that stem does not explain; a position
+    held fixed leaves the spread of the stem's weight in them. ``accuracy``
     (:class:`forward.engine.AccuracySettings`) sets the explicit engine's quadrature, its
     own default if None.
     """
     post = log_posterior
-    mapping = post.mapping
     x = np.array(x, float)
     terms = post.evaluate(x, keep_signal=True)
     if not np.all(np.isfinite(terms.log_posterior)):
         raise ValueError("every parameter draw of the discrepancy needs a finite posterior")
-    values = post.space.values(x)
-    vectors, derived = mapping.model_vectors(values)
+    vectors, _ = post.mapping.model_vectors(post.space.values(x))
     full = post.model.full_vectors(vectors)
     full[:, [FIELD_INDEX[name] for name in CONDITIONING_FIELDS]] = list(
         CONDITIONING_FIELDS.values()
@@ -116,9 +119,8 @@ def realisation_residuals(
         sigma = instrument.footprint_sigma_m
         found = np.array([tallest_stem_within(stand, centre, sigma) for _, stand in stands])
         if TALLEST_STEM in names:
-            values["density_m2"] = derived["density"] * 1e-4
-            quantile = mapping.tallest_stem_quantile(values, found[:, 0])
-            x[:, names.index(TALLEST_STEM)] = quantile
+            height = np.where(found[:, 0] > 0, found[:, 0], -0.5 * NO_STEM_DEPTH_M)
+            x[:, names.index(TALLEST_STEM)] = height
         if TALLEST_STEM_POSITION in names:  # none in the disc: any position
             position = np.where(np.isnan(found[:, 1]), 0.5, found[:, 1])
             x[:, names.index(TALLEST_STEM_POSITION)] = position

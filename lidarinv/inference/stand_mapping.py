@@ -47,9 +47,14 @@ DERIVED = {
 #: Stems per hectare whose mean height is the dominant height.
 DOMINANT_PER_HA = 100.0
 
-#: The latent parameter of a footprint conditioned on its tallest stem: U = P(the tallest
-#: stem within the disc ≤ its height) under the stand's Poisson law, uniform a priori.
-TALLEST_STEM = "tallest_stem_quantile"
+#: The latent parameter of a footprint conditioned on its tallest stem: that stem's height
+#: H (m), whose law given the stand is the Poisson order statistic
+#: (:meth:`StandMapping.tallest_stem_log_density`); H ≤ 0 stands for a disc without a stem.
+TALLEST_STEM = "tallest_stem_height"
+
+#: Width (m) of the range [−NO_STEM_DEPTH_M, 0] of H that stands for a disc without a
+#: stem, which spreads the chance of none, e^{−λA}, uniformly over it.
+NO_STEM_DEPTH_M = 1.0
 
 #: The latent position of that stem: its squared distance from the footprint centre over
 #: the disc's squared radius, uniform a priori; it sets the stem's footprint weight.
@@ -61,6 +66,10 @@ TALLEST_STEM_LATENTS = (TALLEST_STEM, TALLEST_STEM_POSITION)
 #: Radius (in footprint σ) of the disc whose tallest stem conditions the footprint: the
 #: 1/e² radius, holding 1 − e⁻² of the footprint's weight.
 TALLEST_STEM_RADIUS_SIGMAS = 2.0
+
+#: The position V whose footprint weight exp(−2V) is the disc's mean, (1 − e⁻²)/2: where V
+#: is held there, the realisation covariance carries the spread of the stem's weight.
+TALLEST_STEM_MEAN_POSITION = -0.5 * np.log(0.5 * (1.0 - np.exp(-2.0)))
 
 
 def default_template(shape_pair=("cone", "ellipsoid")) -> StandParams:
@@ -96,9 +105,10 @@ class StandMapping:
     footprint_sigma_m : float (m) or None
         If set, condition each footprint on its tallest stem within the disc of radius
         R = :data:`TALLEST_STEM_RADIUS_SIGMAS`·σf (area A): the parameters then include
-        the latents :data:`TALLEST_STEM_LATENTS`, U and V, both uniform a priori. The
-        stem's height H solves S(H) = −ln U/(λA) (S the height survival, λ the stem
-        density; :meth:`tallest_in_area`) and it stands at r² = V·R² from the centre.
+        the latents :data:`TALLEST_STEM_LATENTS`: the stem's height H (m), whose law
+        given the stand is that of the tallest of a Poisson(λA) draw of stems
+        (:meth:`tallest_stem_log_density`), and V, uniform a priori: the stem stands at
+        r² = V·R² from the centre.
         Cohort 1 stops at H (``height_cap``) and the stem itself is an apex cohort whose
         density is its footprint weight, exp(−r²/2σf²)/(2πσf²) stems per m²
         (``apex_density``; on average over V, the disc's weight 1 − e⁻² over A). Stems
@@ -211,10 +221,9 @@ class StandMapping:
             ]
         )
         if self.conditioned:
-            tallest, some = self._tallest(
-                mean, v["height_sd"], lam * self.tallest_stem_area, v[TALLEST_STEM]
-            )
-            cap = np.maximum(tallest, 1e-6)  # no stem in the disc: the lowest tree's height
+            tallest = v[TALLEST_STEM]
+            some = tallest > 0
+            cap = np.where(some, tallest, 1e-6)  # no stem in the disc: no tree below the cap
             weight = np.exp(-0.5 * TALLEST_STEM_RADIUS_SIGMAS**2 * v[TALLEST_STEM_POSITION])
             apex = np.where(some, self._apex_per_ha * weight, 0.0)
             vectors = np.column_stack([vectors, cap, apex])
@@ -229,6 +238,9 @@ class StandMapping:
         }
         if self.conditioned:  # m, 0 where the disc holds no stem
             derived["tallest_stem"] = np.where(some, tallest, 0.0)
+            derived["tallest_stem_log_density"] = self.tallest_stem_log_density(
+                mean, v["height_sd"], lam * self.tallest_stem_area, tallest
+            )
         return vectors, derived
 
     def _stand_columns(self, v):
@@ -279,19 +291,20 @@ class StandMapping:
         tallest, some = self._tallest(mean, v["height_sd"], v["density_m2"] * area, uniform)
         return np.where(some, tallest, 0.0)
 
-    def tallest_stem_quantile(self, v, tallest) -> np.ndarray:
-        """U = exp(−λA·S(H)) of footprints whose tallest stem within the conditioning disc
-        (area A, :attr:`tallest_stem_area`) is ``tallest`` H (m, ≤ 0 where the disc holds
-        none): the inverse of the draw in :meth:`model_vectors`, for an explicit stand.
-        ``v`` holds ``density_m2`` (n,) besides the parameters. A disc without a stem gets
-        half the probability of none, e^{−λA}/2."""
-        mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
-        stems = v["density_m2"] * self.tallest_stem_area
-        tallest = np.asarray(tallest, float)
-        none = ~(tallest > 0)
+    def tallest_stem_log_density(self, mean, sd, stems, tallest) -> np.ndarray:
+        """Log density (1/m) of the tallest stem's height H (m) in a disc holding
+        Poisson(``stems``) stems of height density f and survival S (the height family
+        with parent ``mean`` and ``sd``, m): P(max ≤ h) = exp(−stems·S(h)), so H has the
+        density stems·f(H)·exp(−stems·S(H)) on the family's support, and the chance of
+        no stem, e^{−stems}, is spread over H in [−:data:`NO_STEM_DEPTH_M`, 0]; −inf
+        elsewhere."""
         args = self.family.arguments(mean, sd, self.truncation)
-        tail = self.family.fast("sf", np.where(none, 0.0, tallest), *args)
-        return np.where(none, 0.5 * np.exp(-stems), np.exp(-stems * tail))
+        height = np.maximum(tallest, 0.0)
+        with np.errstate(divide="ignore"):
+            some = np.log(stems * self.family.fast("pdf", height, *args))
+        some = some - stems * self.family.fast("sf", height, *args)
+        none = np.where(tallest >= -NO_STEM_DEPTH_M, -stems - np.log(NO_STEM_DEPTH_M), -np.inf)
+        return np.where(tallest > 0, some, none)
 
     def _tallest(self, mean, sd, stems, uniform):
         """Height (m) solving S(h) = −ln U / ``stems`` (the expected stems on the area) and
