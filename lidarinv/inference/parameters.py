@@ -115,7 +115,7 @@ PLAUSIBLE_FAVD_RANGE = (0.05, 3.0)
 
 #: Held fixed unless a priors file frees them. The tallest stem's position (when that
 #: latent is in the space) at its mean footprint weight: sampling it lengthened the chains
-#: by a third and changed no coverage of the required quantities (README, "The
+#: by two fifths and changed no coverage of the required quantities (README, "The
 #: footprint's tallest stem, a latent").
 DEFAULT_FIXED = {"crown_radius_slope": 0.1, TALLEST_STEM_POSITION: TALLEST_STEM_MEAN_POSITION}
 
