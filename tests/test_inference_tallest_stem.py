@@ -154,6 +154,9 @@ def test_the_posterior_carries_the_law_of_the_latent(problem, shot):
     law = derived["tallest_stem_log_density"]
     assert terms.log_prior[1] - terms.log_prior[0] == pytest.approx(law[1] - law[0], rel=1e-9)
     assert law[1] > law[0]  # in a dense stand the disc's tallest stem is near the top
+    plain = build_problem(shot, InversionSettings()).space
+    rest = np.delete(x[:2], [stem, position], axis=1)
+    np.testing.assert_allclose(terms.log_prior[:2], plain.log_prior(rest) + law, rtol=1e-12)
     unconditioned = build_problem(shot, InversionSettings())
     with pytest.raises(ValueError, match=TALLEST_STEM):
         LogPosterior(space, unconditioned.log_posterior.mapping, *_rest(unconditioned))

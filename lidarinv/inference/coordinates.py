@@ -190,6 +190,6 @@ def top_from_stem_gap(tallest, log_gap):
 
 def stem_gap_from_top(top, tallest):
     """g = ln(top − H), the inverse of :func:`top_from_stem_gap` (NaN where top ≤ H)."""
+    gap = np.asarray(top, float) - tallest
     with np.errstate(divide="ignore", invalid="ignore"):
-        gap = np.asarray(top, float) - tallest
-        return np.where(gap > 0, np.log(np.where(gap > 0, gap, 1.0)), np.nan)
+        return np.where(gap > 0, np.log(gap), np.nan)

@@ -15,7 +15,7 @@ from .correlated import Rotation, covariance_obstacle
 from .likelihood import WindowData, row_log_likelihood
 from .marginal import GainMarginal, gain_marginal_obstacle
 from .parameters import ParameterSpace
-from .priors import PriorTable, Uniform
+from .priors import Uniform
 from .stand_mapping import DERIVED, TALLEST_STEM, TALLEST_STEM_LATENTS, StandMapping
 
 #: Blob columns after the log-probability: model-waveform RH metrics, then DERIVED.
@@ -140,7 +140,6 @@ class LogPosterior:
                 raise ValueError(f"the gain cannot be marginalised: {obstacle}")
             self.gain_marginal = GainMarginal(space.by_name["gain"].prior)
         self.blob_names = BLOB_NAMES
-        # the sampled range of the tallest stem's height, whose law the stand gives instead
         stem = space.by_name.get(TALLEST_STEM)
         free_stem = stem is not None and stem.free
         if free_stem and not isinstance(stem.prior, Uniform):
@@ -148,7 +147,10 @@ class LogPosterior:
                 f"{TALLEST_STEM} takes a uniform range, not a {stem.prior.describe()['kind']} "
                 "prior: its law is the stand's, given the other parameters"
             )
-        self._stem_range = PriorTable([stem.prior]) if free_stem else None
+        # log of the range's width, the uniform density the law replaces (0: H held)
+        self._stem_range_log_width = (
+            np.log(stem.prior.upper - stem.prior.lower) if free_stem else 0.0
+        )
 
     @property
     def ndim(self) -> int:
@@ -188,8 +190,9 @@ class LogPosterior:
                 x = np.where(ok[:, None], x, x[np.argmax(ok)])
                 values = self.space.values(x)
             vectors, derived = self.mapping.model_vectors(values)
-            if self.mapping.conditioned:
-                log_prior = log_prior + self._tallest_stem_law(values, derived)
+            if self.mapping.conditioned:  # the stem's law replaces its uniform range
+                law = derived["tallest_stem_log_density"]
+                log_prior = log_prior + law + self._stem_range_log_width
                 ok &= np.isfinite(log_prior)
             if self.favd_range != (0.0, np.inf):
                 favd = derived["favd"]
@@ -238,14 +241,6 @@ class LogPosterior:
         log_post = np.where(np.isfinite(log_post), log_post, -np.inf)
         signal = np.where(ok[:, None], result.samples, 0.0) if keep_signal else None
         return Evaluation(log_prior, log_like, log_post, blobs, signal, gain_fit)
-
-    def _tallest_stem_law(self, values, derived) -> np.ndarray:
-        """Log density of the tallest stem's height given the stand, less that of its
-        sampled range where it is free (that prior only bounds it)."""
-        law = derived["tallest_stem_log_density"]
-        if self._stem_range is None:
-            return law
-        return law - self._stem_range.log_pdf(values[TALLEST_STEM][:, None])[:, 0]
 
     def _nothing(self, log_prior, keep_signal) -> Evaluation:
         """The terms of a batch without a single valid row."""
