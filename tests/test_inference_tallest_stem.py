@@ -99,19 +99,24 @@ def test_latent_stem_conditions_the_model_vectors(mapping, rng):
 
 
 def test_no_stem_and_heights_off_the_support(mapping):
-    """H in [−1, 0] m is a disc without a stem, of probability e^{−λA} spread over that
-    metre: no apex and no tree below the cap. Heights the stand cannot hold have density
-    zero: above its top, between 0 and its lowest tree, and below −1 m."""
-    values = _values(6, **{TALLEST_STEM_POSITION: 0.3})
-    values[TALLEST_STEM] = np.array([-0.5, -1.0, 24.5, 5.0, -1.5, 23.9])
+    """H in the metre below the stand's lowest tree (12 m) is a disc without a stem, of
+    probability e^{−λA} spread over that metre: no apex and no tree below the cap. That
+    range joins the support, so a short stem and none are neighbours. Heights the stand
+    cannot hold have density zero: above its top, and more than a metre below its lowest
+    tree."""
+    values = _values(7, **{TALLEST_STEM_POSITION: 0.3})
+    values[TALLEST_STEM] = np.array([11.5, 11.0, 12.0 - 1e-9, 12.0 + 1e-9, 24.5, 10.9, 5.0])
     vectors, derived = mapping.model_vectors(values)
     stems = derived["density"] * 1e-4 * mapping.tallest_stem_area
     law = derived["tallest_stem_log_density"]
-    np.testing.assert_allclose(law[:2], -stems[:2], rtol=1e-12)
-    assert np.all(law[2:5] == -np.inf) and np.isfinite(law[5])
-    assert np.all(derived["tallest_stem"][:2] == 0.0)
-    assert np.all(vectors[:2, mapping.model_free.index("apex_density")] == 0.0)
-    assert np.all(vectors[:2, mapping.model_free.index("height_cap")] < 1e-3)
+    np.testing.assert_allclose(law[:3], -stems[:3], rtol=1e-12)
+    density = stats.truncnorm(-2, 2, loc=18.0, scale=3.0).pdf(12.0 + 1e-9)
+    assert law[3] == pytest.approx(np.log(stems[3] * density) - stems[3], rel=1e-6)
+    assert np.all(law[4:] == -np.inf)
+    assert np.all(derived["tallest_stem"][:3] == 0.0)
+    assert np.all(vectors[:3, mapping.model_free.index("apex_density")] == 0.0)
+    assert np.all(vectors[:3, mapping.model_free.index("height_cap")] < 1e-3)
+    np.testing.assert_allclose(mapping.lowest_height(values), 12.0, rtol=1e-12)
 
 
 @pytest.fixture(scope="module")

@@ -86,7 +86,7 @@ NUISANCE = {
 LATENT = {
     TALLEST_STEM: (
         "m",
-        "height of the footprint's tallest stem (within 2 sigma_f); <= 0 for none",
+        "height of the footprint's tallest stem (within 2 sigma_f); below the lowest tree: none",
     ),
     TALLEST_STEM_POSITION: (
         "1",
@@ -356,12 +356,14 @@ class ParameterSpace:
 
     def sample_prior(self, rng, size) -> np.ndarray:
         """Draws from the free parameters' priors; a tallest stem sampled with the top
-        height is drawn uniformly over the stand's height range below it instead (its law
-        given the stand needs the stand's density: these are candidates, to be scored)."""
+        height is drawn uniformly over the stand's height range below it, and the no-stem
+        range under that, instead (its law given the stand needs the stand's density:
+        these are candidates, to be scored)."""
         x = np.column_stack([p.prior.sample(rng, size) for p in self.free])
         if TALLEST_STEM in self.names and "top_height" in self.by_name:
             top = self._column(x, "top_height")
             span = np.minimum(2.0 * TOP_SDS * self._column(x, "height_sd"), top)
+            span += NO_STEM_DEPTH_M  # and the no-stem range below the lowest tree
             x[:, self.names.index(TALLEST_STEM)] = top - span * rng.uniform(size=size)
         return x
 

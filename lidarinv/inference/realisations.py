@@ -92,9 +92,10 @@ def realisation_residuals(
 
     aᵢ is the row's gain, or its least-squares fit where the gain is integrated out.
     Where the latent tallest stem is sampled, each row's latents are set to those of its
-    own stand's tallest stem within the disc (its height, −NO_STEM_DEPTH_M/2 for none,
-    and its position), so the residuals hold what that stem does not explain; a position
-    held fixed leaves the spread of the stem's weight in them. ``accuracy``
+    own stand's tallest stem within the disc (its height, or a height in the no-stem range
+    below the stand's lowest tree, and its position), so the residuals hold what that
+    stem does not explain; a position held fixed leaves the spread of the stem's weight
+    in them. ``accuracy``
     (:class:`forward.engine.AccuracySettings`) sets the explicit engine's quadrature, its
     own default if None.
     """
@@ -118,9 +119,9 @@ def realisation_residuals(
     if set(TALLEST_STEM_LATENTS) & set(names):  # each row on its own stand's tallest stem
         sigma = instrument.footprint_sigma_m
         found = np.array([tallest_stem_within(stand, centre, sigma) for _, stand in stands])
-        if TALLEST_STEM in names:
-            height = np.where(found[:, 0] > 0, found[:, 0], -0.5 * NO_STEM_DEPTH_M)
-            x[:, names.index(TALLEST_STEM)] = height
+        if TALLEST_STEM in names:  # none in the disc: half the no-stem depth below
+            none = post.mapping.lowest_height(post.space.values(x)) - 0.5 * NO_STEM_DEPTH_M
+            x[:, names.index(TALLEST_STEM)] = np.where(found[:, 0] > 0, found[:, 0], none)
         if TALLEST_STEM_POSITION in names:  # none in the disc: any position
             position = np.where(np.isnan(found[:, 1]), 0.5, found[:, 1])
             x[:, names.index(TALLEST_STEM_POSITION)] = position

@@ -49,11 +49,13 @@ DOMINANT_PER_HA = 100.0
 
 #: The latent parameter of a footprint conditioned on its tallest stem: that stem's height
 #: H (m), whose law given the stand is the Poisson order statistic
-#: (:meth:`StandMapping.tallest_stem_log_density`); H ≤ 0 stands for a disc without a stem.
+#: (:meth:`StandMapping.tallest_stem_log_density`); H below the stand's lowest tree stands
+#: for a disc without a stem.
 TALLEST_STEM = "tallest_stem_height"
 
-#: Width (m) of the range [−NO_STEM_DEPTH_M, 0] of H that stands for a disc without a
-#: stem, which spreads the chance of none, e^{−λA}, uniformly over it.
+#: Depth (m) of the range of H just below the stand's lowest tree that stands for a disc
+#: without a stem, which spreads the chance of none, e^{−λA}, uniformly over it. Joined to
+#: the support, it lets the sampler pass between a short stem and none.
 NO_STEM_DEPTH_M = 1.0
 
 #: The latent position of that stem: its squared distance from the footprint centre over
@@ -221,8 +223,10 @@ class StandMapping:
             ]
         )
         if self.conditioned:
+            args = self.family.arguments(mean, v["height_sd"], self.truncation)
+            lowest = self.family.fast("ppf", np.zeros_like(mean), *args)
             tallest = v[TALLEST_STEM]
-            some = tallest > 0
+            some = tallest >= lowest
             cap = np.where(some, tallest, 1e-6)  # no stem in the disc: no tree below the cap
             weight = np.exp(-0.5 * TALLEST_STEM_RADIUS_SIGMAS**2 * v[TALLEST_STEM_POSITION])
             apex = np.where(some, self._apex_per_ha * weight, 0.0)
@@ -239,7 +243,7 @@ class StandMapping:
         if self.conditioned:  # m, 0 where the disc holds no stem
             derived["tallest_stem"] = np.where(some, tallest, 0.0)
             derived["tallest_stem_log_density"] = self.tallest_stem_log_density(
-                mean, v["height_sd"], lam * self.tallest_stem_area, tallest
+                args, lowest, lam * self.tallest_stem_area, tallest
             )
         return vectors, derived
 
@@ -291,20 +295,26 @@ class StandMapping:
         tallest, some = self._tallest(mean, v["height_sd"], v["density_m2"] * area, uniform)
         return np.where(some, tallest, 0.0)
 
-    def tallest_stem_log_density(self, mean, sd, stems, tallest) -> np.ndarray:
+    def tallest_stem_log_density(self, args, lowest, stems, tallest) -> np.ndarray:
         """Log density (1/m) of the tallest stem's height H (m) in a disc holding
-        Poisson(``stems``) stems of height density f and survival S (the height family
-        with parent ``mean`` and ``sd``, m): P(max ≤ h) = exp(−stems·S(h)), so H has the
-        density stems·f(H)·exp(−stems·S(H)) on the family's support, and the chance of
-        no stem, e^{−stems}, is spread over H in [−:data:`NO_STEM_DEPTH_M`, 0]; −inf
-        elsewhere."""
-        args = self.family.arguments(mean, sd, self.truncation)
-        height = np.maximum(tallest, 0.0)
+        Poisson(``stems``) stems of height density f and survival S (the height family of
+        arguments ``args``, whose lowest tree is ``lowest``, m): P(max ≤ h) =
+        exp(−stems·S(h)), so H has the density stems·f(H)·exp(−stems·S(H)) on the
+        family's support, and the chance of no stem, e^{−stems}, is spread over the
+        :data:`NO_STEM_DEPTH_M` below ``lowest``; −inf elsewhere."""
+        some = tallest >= lowest
+        height = np.where(some, tallest, lowest)
         with np.errstate(divide="ignore"):
-            some = np.log(stems * self.family.fast("pdf", height, *args))
-        some = some - stems * self.family.fast("sf", height, *args)
-        none = np.where(tallest >= -NO_STEM_DEPTH_M, -stems - np.log(NO_STEM_DEPTH_M), -np.inf)
-        return np.where(tallest > 0, some, none)
+            law = np.log(stems * self.family.fast("pdf", height, *args))
+        law -= stems * self.family.fast("sf", height, *args)
+        none = np.where(tallest >= lowest - NO_STEM_DEPTH_M, -np.log(NO_STEM_DEPTH_M), -np.inf)
+        return np.where(some, law, none - stems)
+
+    def lowest_height(self, v) -> np.ndarray:
+        """Height (m) of the lowest tree of each row's height family, (n,)."""
+        mean = v["top_height"] - TOP_SDS * v["height_sd"]
+        args = self.family.arguments(mean, v["height_sd"], self.truncation)
+        return self.family.fast("ppf", np.zeros_like(mean), *args)
 
     def _tallest(self, mean, sd, stems, uniform):
         """Height (m) solving S(h) = −ln U / ``stems`` (the expected stems on the area) and
