@@ -223,8 +223,7 @@ class StandMapping:
             ]
         )
         if self.conditioned:
-            args = self.family.arguments(mean, v["height_sd"], self.truncation)
-            lowest = self.family.fast("ppf", np.zeros_like(mean), *args)
+            args, lowest = self._arguments_and_lowest(mean, v["height_sd"])
             tallest = v[TALLEST_STEM]
             some = tallest >= lowest
             cap = np.where(some, tallest, 1e-6)  # no stem in the disc: no tree below the cap
@@ -313,8 +312,12 @@ class StandMapping:
     def lowest_height(self, v) -> np.ndarray:
         """Height (m) of the lowest tree of each row's height family, (n,)."""
         mean = v["top_height"] - TOP_SDS * v["height_sd"]
-        args = self.family.arguments(mean, v["height_sd"], self.truncation)
-        return self.family.fast("ppf", np.zeros_like(mean), *args)
+        return self._arguments_and_lowest(mean, v["height_sd"])[1]
+
+    def _arguments_and_lowest(self, mean, sd):
+        """The height family's arguments and its lowest tree's height (m) per row."""
+        args = self.family.arguments(mean, sd, self.truncation)
+        return args, self.family.fast("ppf", np.zeros_like(mean), *args)
 
     def _tallest(self, mean, sd, stems, uniform):
         """Height (m) solving S(h) = −ln U / ``stems`` (the expected stems on the area) and
