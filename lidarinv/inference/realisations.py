@@ -95,16 +95,16 @@ def realisation_residuals(
     own stand's tallest stem within the disc (its height, or a height in the no-stem range
     below the stand's lowest tree, and its position), so the residuals hold what that
     stem does not explain; a position held fixed leaves the spread of the stem's weight
-    in them. ``accuracy``
-    (:class:`forward.engine.AccuracySettings`) sets the explicit engine's quadrature, its
-    own default if None.
+    in them. ``accuracy`` (:class:`forward.engine.AccuracySettings`) sets the explicit
+    engine's quadrature, its own default if None.
     """
     post = log_posterior
     x = np.array(x, float)
     terms = post.evaluate(x, keep_signal=True)
     if not np.all(np.isfinite(terms.log_posterior)):
         raise ValueError("every parameter draw of the discrepancy needs a finite posterior")
-    vectors, _ = post.mapping.model_vectors(post.space.values(x))
+    values = post.space.values(x)
+    vectors, _ = post.mapping.model_vectors(values)
     full = post.model.full_vectors(vectors)
     full[:, [FIELD_INDEX[name] for name in CONDITIONING_FIELDS]] = list(
         CONDITIONING_FIELDS.values()
@@ -120,7 +120,7 @@ def realisation_residuals(
         sigma = instrument.footprint_sigma_m
         found = np.array([tallest_stem_within(stand, centre, sigma) for _, stand in stands])
         if TALLEST_STEM in names:  # none in the disc: half the no-stem depth below
-            none = post.mapping.lowest_height(post.space.values(x)) - 0.5 * NO_STEM_DEPTH_M
+            none = post.mapping.lowest_height(values) - 0.5 * NO_STEM_DEPTH_M
             x[:, names.index(TALLEST_STEM)] = np.where(found[:, 0] > 0, found[:, 0], none)
         if TALLEST_STEM_POSITION in names:  # none in the disc: any position
             position = np.where(np.isnan(found[:, 1]), 0.5, found[:, 1])
