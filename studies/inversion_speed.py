@@ -115,13 +115,19 @@ def _invert_timed(obs, settings, seed, problem=None) -> dict:
 
 
 def add_sampler_options(parser):
-    """--walkers and --moves, shared with the sampling-coordinates study."""
+    """--walkers, --moves and --fit-steps, shared with the sampling-coordinates study."""
     parser.add_argument("--walkers", type=int, default=SamplerSettings().n_walkers)
     parser.add_argument(
         "--moves",
         nargs="+",
         metavar="NAME=WEIGHT",
         help="move mixture (names from lidarinv.inference.moves.MOVES); default the sampler's",
+    )
+    parser.add_argument(
+        "--fit-steps",
+        type=int,
+        nargs="+",
+        help="steps at which the chain-t move is fitted; default the sampler's",
     )
 
 
@@ -131,6 +137,8 @@ def sampler_changes(args) -> dict:
     if args.moves:
         pairs = (move.split("=") for move in args.moves)
         changes["moves"] = tuple((name, float(weight)) for name, weight in pairs)
+    if args.fit_steps:
+        changes["fit_steps"] = tuple(args.fit_steps)
     return changes
 
 

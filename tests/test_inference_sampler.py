@@ -116,15 +116,18 @@ def test_batched_sampler_refuses_a_nan_log_probability():
     spread=st.floats(0.1, 1.0),
     change=st.floats(0.9, 1.1),
     iteration=st.integers(10, 60_000),
+    floor=st.sampled_from([0, 100, 200, 400, 800, 1600, 3200]),
 )
-def test_a_skipped_check_could_not_have_ended_the_run(tau, spread, change, iteration):
+def test_a_skipped_check_could_not_have_ended_the_run(tau, spread, change, iteration, floor):
+    """Also after a chain-t fit at ``floor``, whose steps before are always discarded."""
     settings = SamplerSettings()
     previous = np.array([tau, spread * tau])
     new = previous * np.array([change, 1.0])
     stable = np.all(np.abs(new - previous) < settings.tau_tolerance * new)
-    kept = iteration - burn_in(iteration, previous, settings.burn_taus)
+    kept = iteration - burn_in(iteration, previous, settings.burn_taus, floor)
+    assert kept <= iteration - floor
     if stable and np.all(kept > settings.tau_multiple * new):
-        assert _may_converge(iteration, previous, settings)
+        assert _may_converge(iteration, previous, settings, floor)
 
 
 def test_map_and_laplace_covariance_match_the_closed_form():
@@ -183,6 +186,28 @@ def test_resume_from_hdf5_backend(tmp_path):
     )
     assert again.chain.shape[0] == 180
     np.testing.assert_array_equal(again.chain[:100], first.chain)
+
+
+def test_chain_t_is_fitted_then_frozen_and_refitted_on_resuming(tmp_path):
+    """The run discards the steps before the chain-t move's last fit (after it the chain is
+    an exact MCMC chain), and a resumed run refits it from the same stored steps: the
+    chain is the very one an uninterrupted run makes (with no refit it is not)."""
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
+    toy = LinearGaussianToy(space, np.random.default_rng(8))
+    moves = (("de", 0.5), ("chain-t", 0.5))
+
+    def run(path, steps, seed):
+        settings = SamplerSettings(
+            n_walkers=8, max_steps=steps, check_every=1000, moves=moves, fit_steps=(40, 80)
+        )
+        backend = emcee.backends.HDFBackend(str(path), name="shot_1")
+        return run_sampler(toy, space, np.random.default_rng(seed), settings, backend=backend)
+
+    whole = run(tmp_path / "whole.h5", 200, 1)
+    run(tmp_path / "parts.h5", 120, 1)
+    resumed = run(tmp_path / "parts.h5", 200, 2)
+    np.testing.assert_array_equal(resumed.chain, whole.chain)
+    assert whole.burn == resumed.burn == 80
 
 
 def test_chain_sampled_in_other_coordinates_is_not_resumed(tmp_path):
