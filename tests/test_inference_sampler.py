@@ -198,7 +198,12 @@ def test_chain_t_is_fitted_then_frozen_and_refitted_on_resuming(tmp_path):
 
     def run(path, steps, seed):
         settings = SamplerSettings(
-            n_walkers=8, max_steps=steps, check_every=1000, moves=moves, fit_steps=(40, 80)
+            n_walkers=8,
+            max_steps=steps,
+            check_every=1000,
+            moves=moves,
+            fit_steps=(40, 80),
+            fit_fraction=1.0,  # refit at 80 within either cap (120 or 200 steps)
         )
         backend = emcee.backends.HDFBackend(str(path), name="shot_1")
         return run_sampler(toy, space, np.random.default_rng(seed), settings, backend=backend)

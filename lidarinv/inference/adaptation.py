@@ -23,13 +23,13 @@ def fit_moves(sampler, adaptive, step=None) -> bool:
     return bool(adaptive) and all([move.fit(points) for move in adaptive])
 
 
-def worth_refitting(step, tau, fit_fraction, tau_multiple) -> bool:
+def worth_refitting(step, tau, fit_fraction, tau_multiple, max_steps) -> bool:
     """Whether to fit again at ``step``: only while the run, ``tau_multiple`` times the
-    latest τ (steps), is expected to last at least ``step / fit_fraction`` steps, since
-    each fit discards the steps before it. Always while τ is unknown."""
-    if not np.all(np.isfinite(tau)):
-        return True
-    return fit_fraction * tau_multiple * np.max(tau) >= step
+    latest τ (steps) but at most ``max_steps``, is expected to last at least
+    ``step / fit_fraction`` steps, since each fit discards the steps before it. Always
+    while τ is unknown, within that cap."""
+    expected = tau_multiple * np.max(tau) if np.all(np.isfinite(tau)) else np.inf
+    return fit_fraction * min(expected, max_steps) >= step
 
 
 def record_fit(backend, step):

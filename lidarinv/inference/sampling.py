@@ -93,9 +93,10 @@ class SamplerSettings:
         on the proposal is fixed and the chain an exact MCMC chain.
     fit_fraction : float
         A later fit at step f is made only if the run, at ``tau_multiple`` times the
-        latest τ, is expected to last at least f / ``fit_fraction`` steps: an easy shot
-        (τ ≈ 20) stops fitting at step 200, a slow one (τ ≈ 200) refits until its t
-        spans the posterior's tails, at step 1600.
+        latest τ and at most ``max_steps``, is expected to last at least f /
+        ``fit_fraction`` steps: an easy shot (τ ≈ 20) stops fitting at step 200, a slow
+        one (τ ≈ 200) refits until its t spans the posterior's tails, at step 1600 (at
+        400 under a cap of 2500 steps).
     """
 
     n_walkers: int = 64
@@ -450,7 +451,7 @@ def run_sampler(
         if fits and sampler.iteration == fits[0]:
             fits.pop(0)
             wanted = floor == 0 or worth_refitting(
-                sampler.iteration, tau, s.fit_fraction, s.tau_multiple
+                sampler.iteration, tau, s.fit_fraction, s.tau_multiple, s.max_steps
             )
             if wanted and fit_moves(sampler, adaptive):
                 floor = sampler.iteration  # an exact MCMC chain from here on
