@@ -445,7 +445,9 @@ def run_sampler(
     # one generator for the whole run: the backend grows once, not at every check
     next_check = sampler.iteration + s.check_every
     adaptive = [move for move, _ in moves if hasattr(move, "fit")]
-    fits = sorted(step for step in s.fit_steps if step > sampler.iteration) if adaptive else []
+    # a fit discards the steps before it: none at the last step
+    fits = sorted(step for step in s.fit_steps if sampler.iteration < step < s.max_steps)
+    fits = fits if adaptive else []
     floor = refit_on_resume(sampler, adaptive, backend) if resume else 0
     for _ in sampler.sample(state, iterations=max(s.max_steps - sampler.iteration, 0)):
         if fits and sampler.iteration == fits[0]:
