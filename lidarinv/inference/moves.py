@@ -99,18 +99,24 @@ class EnsembleStudentMove(BatchAcceptance):
         super().__init__(**kwargs)
 
     def get_proposal(self, s, c, random):
-        others = np.concatenate(c, axis=0)
-        n, ndim = others.shape
-        stay = s.copy(), np.zeros(len(s))
+        fitted = self._fit_t(np.concatenate(c, axis=0))
+        if fitted is None:
+            return s.copy(), np.zeros(len(s))
+        return self._independence_proposal(s, *fitted, random)
+
+    def _fit_t(self, points):
+        """The t's mean and scale (lower Cholesky factor of the covariance times
+        ``scale``) fitted to ``points`` (n, ndim); None where they cannot span the
+        dimensions or their covariance is singular."""
+        n, ndim = points.shape
         if n <= ndim:
-            return stay
-        mean = others.mean(axis=0)
-        centred = others - mean
+            return None
+        mean = points.mean(axis=0)
+        centred = points - mean
         try:
-            chol = np.linalg.cholesky(centred.T @ centred / (n - 1)) * self.scale
+            return mean, np.linalg.cholesky(centred.T @ centred / (n - 1)) * self.scale
         except np.linalg.LinAlgError:
-            return stay
-        return self._independence_proposal(s, mean, chol, random)
+            return None
 
     def _independence_proposal(self, s, mean, chol, random):
         """Draws from the t of ``mean`` and scale ``chol`` (lower Cholesky factor) for
@@ -149,14 +155,10 @@ class ChainStudentMove(EnsembleStudentMove):
     def fit(self, points) -> bool:
         """Fit the t's mean and covariance to ``points`` (n, ndim); False (and no change)
         where their covariance is singular."""
-        points = np.asarray(points, float)
-        if points.shape[0] <= points.shape[1]:
+        fitted = self._fit_t(np.asarray(points, float))
+        if fitted is None:
             return False
-        try:
-            chol = np.linalg.cholesky(np.cov(points, rowvar=False)) * self.scale
-        except np.linalg.LinAlgError:
-            return False
-        self.mean, self.chol = points.mean(axis=0), chol
+        self.mean, self.chol = fitted
         return True
 
     def get_proposal(self, s, c, random):
