@@ -8,10 +8,11 @@ from hypothesis import strategies as st
 
 from forward.stand_params import StandParams
 from lidarinv.inference import InversionSettings, build_problem
+from lidarinv.inference.chains import BatchedSampler, sample_in_chunks
+from lidarinv.inference.moves import MOVES
 from lidarinv.inference.parameters import Parameter, ParameterSpace
 from lidarinv.inference.priors import Uniform
 from lidarinv.inference.sampling import (
-    BatchedSampler,
     SamplerSettings,
     _may_converge,
     burn_in,
@@ -109,6 +110,39 @@ def test_batched_sampler_refuses_a_nan_log_probability():
     sampler = BatchedSampler(4, 1, nan_at_origin, vectorize=True)
     with pytest.raises(ValueError, match="returned NaN"):
         sampler.run_mcmc(np.linspace(-1.0, 1.0, 4)[:, None], 1)
+
+
+@pytest.mark.parametrize("hdf5", [False, True])
+def test_chunked_steps_walk_the_chain_one_call_walks(tmp_path, hdf5):
+    """Chunks of 30, 30, 60, 120 and 10 steps give the very chain, log-probabilities and
+    blobs of one 250-step ``sample`` call, with the moves of a real run; the storage stays
+    within twice the steps taken (one call allocates them all up front)."""
+    rng = np.random.default_rng(11)
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
+    toy = LinearGaussianToy(space, rng)
+    start = 0.1 * rng.standard_normal((16, 3))
+    runs = []
+    for chunked in (False, True):
+        backend = emcee.backends.HDFBackend(str(tmp_path / f"{chunked}.h5")) if hdf5 else None
+        moves = [(MOVES[name](), weight) for name, weight in SamplerSettings().moves]
+        sampler = BatchedSampler(16, 3, toy, vectorize=True, moves=moves, backend=backend)
+        sampler.random_state = np.random.RandomState(4).get_state()
+        if chunked:
+            for _ in sample_in_chunks(sampler, start, 140, first=30):
+                pass
+            assert len(sampler.backend.get_chain()) == 140
+            assert sampler.backend.shape == (16, 3)
+            capacity = sampler.backend.get_chain().shape[0] if hdf5 else len(sampler.backend.chain)
+            assert capacity <= 2 * 140
+            for _ in sample_in_chunks(sampler, sampler.get_last_sample(), 110, first=30):
+                pass
+        else:
+            for _ in sampler.sample(start, iterations=250):
+                pass
+        runs.append((sampler.get_chain(), sampler.get_log_prob(), sampler.get_blobs()))
+    for chunked, whole in zip(*runs[::-1]):
+        assert chunked.shape[0] == 250
+        np.testing.assert_array_equal(chunked, whole)
 
 
 @given(
