@@ -144,7 +144,19 @@ def test_priors_file_overrides_fix_and_free(tmp_path, nuisance_priors):
     "text, message",
     [
         ("[canopy_colour]\nfixed = 1\n", "unknown parameter"),
-        ("[cover]\nkind = 'uniform'\nlower = 1\n", "missing"),
+        ("[cover]\nkind = 'uniform'\nlower = 1\n", r"\[cover\] a uniform prior needs \['upper'\]"),
+        (
+            "[cover]\nprior = {kind = 'uniform', lower = 0, upper = 1}\n",
+            r"\[cover\].*not \['prior'\]",
+        ),
+        (
+            "[pai]\nkind = 'log-uniform'\nlower = 'one'\nupper = 9\n",
+            r"\[pai\].*lower must be a number",
+        ),
+        (
+            "[top_height]\nkind = 'truncated-normal'\nmean = 20\nsd = 2\nlower = 10\nupper = 30\nmedian = 3\n",
+            r"takes kind and \['mean', 'sd', 'lower', 'upper'\]",
+        ),
         ("[cover\n", "not valid TOML"),
         ("[favd]\nlower = 2.0\nupper = 1.0\n", "lower < upper"),
         ("[favd]\nmedian = 1.0\n", "takes lower and upper"),

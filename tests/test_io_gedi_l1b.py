@@ -135,3 +135,8 @@ def test_wrong_format_is_a_clear_error(gedi_file, tmp_path):
         f["something"] = np.zeros(3)
     with pytest.raises(ValueError, match="not a recognised"):
         list(iter_observations(other))
+    simulated = tmp_path / "simulated.h5"  # `lidarinv simulate` output: no noise, no gain
+    with h5py.File(simulated, "w") as f:
+        f["footprint_000/samples"] = np.zeros(3)
+    with pytest.raises(ValueError, match="noise-free waveforms from 'lidarinv simulate'"):
+        list(iter_observations(simulated))

@@ -488,7 +488,10 @@ def read_priors_file(path) -> dict:
         elif spec.pop("free", False) or spec:
             change["fixed"] = None
         if spec:
-            change["prior"] = make_prior(spec)
+            try:
+                change["prior"] = make_prior(spec)
+            except ValueError as error:
+                raise ValueError(f"{path}: [{name}] {error}") from None
         changes[name] = change
     return changes
 

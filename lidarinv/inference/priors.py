@@ -10,6 +10,7 @@ a parameter against a bound, its tail in u falls off only exponentially under ``
 but like a Gaussian under ``probit``.
 """
 
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
@@ -316,7 +317,17 @@ def make_prior(spec) -> object:
         factory = PRIOR_KINDS[kind]
     except KeyError:
         raise ValueError(f"unknown prior kind {kind!r}; known: {sorted(PRIOR_KINDS)}") from None
-    try:
-        return factory(**{key: float(value) for key, value in spec.items()})
-    except TypeError as error:
-        raise ValueError(f"{kind} prior: {error}") from None
+    accepted = list(inspect.signature(factory).parameters)
+    unknown = sorted(set(spec) - set(accepted))
+    if unknown:
+        raise ValueError(f"a {kind} prior takes kind and {accepted}, not {unknown}")
+    missing = [key for key in accepted if key not in spec]
+    if missing:
+        raise ValueError(f"a {kind} prior needs {missing}")
+    values = {}
+    for key, value in spec.items():
+        try:
+            values[key] = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"{kind} prior: {key} must be a number, got {value!r}") from None
+    return factory(**values)

@@ -3,6 +3,7 @@
 import h5py
 
 from . import gedi_l1b, lvis_l1b, waveforms
+from .simulation import is_simulation
 
 #: Format name → module with ``detect``, ``beams``, ``count_shots`` and ``iter_shots``.
 FORMATS = {
@@ -17,6 +18,13 @@ def detect_format(handle) -> str:
     for name, module in FORMATS.items():
         if module.detect(handle):
             return name
+    if is_simulation(handle):
+        raise ValueError(
+            f"{handle.filename} holds noise-free waveforms from 'lidarinv simulate' "
+            "(apparent reflectance, no gain or noise), not observations: read them with "
+            "lidarinv.io.simulation.read_simulation, observe them with "
+            "lidarinv.observe.observe and write them with lidarinv.io.write_observations"
+        )
     raise ValueError(
         f"{handle.filename}: not a recognised waveform file (formats: {list(FORMATS)})"
     )

@@ -58,6 +58,11 @@ def write_simulation(path, waveforms, stand=None, attributes=None) -> None:
             write_stand(handle.create_group("stand"), stand)
 
 
+def is_simulation(handle) -> bool:
+    """Whether an open HDF5 file holds ``lidarinv simulate`` footprints."""
+    return any(name.startswith("footprint_") for name in handle)
+
+
 def read_simulation(path) -> list[dict]:
     """Read the footprints of a simulation file as dicts of arrays and attributes."""
     with h5py.File(path, "r") as handle:
