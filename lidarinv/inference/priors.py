@@ -317,11 +317,12 @@ def make_prior(spec) -> object:
         factory = PRIOR_KINDS[kind]
     except KeyError:
         raise ValueError(f"unknown prior kind {kind!r}; known: {sorted(PRIOR_KINDS)}") from None
-    accepted = list(inspect.signature(factory).parameters)
+    parameters = inspect.signature(factory).parameters
+    accepted = list(parameters)
     unknown = sorted(set(spec) - set(accepted))
     if unknown:
         raise ValueError(f"a {kind} prior takes kind and {accepted}, not {unknown}")
-    missing = [key for key in accepted if key not in spec]
+    missing = [k for k, p in parameters.items() if p.default is p.empty and k not in spec]
     if missing:
         raise ValueError(f"a {kind} prior needs {missing}")
     values = {}
