@@ -76,7 +76,7 @@ def gedi_like_observations(n, rng, per_stand=8):
         centers = rng.uniform(-15.0, 15.0, (per_stand, 2))
         for wf in sim.simulate_many(prepared, centers, heights=heights):
             obs = observe(wf, gain=4000.0, baseline=230.0, noise_sigma=2.5, shot_factor=0.5,
-                          rng=rng, shot_id=len(shots))  # fmt: skip
+                          rng=rng, shot_id=len(shots), instrument=sim.instrument)  # fmt: skip
             shots.append(obs)
     return shots[:n]
 

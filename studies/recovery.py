@@ -156,7 +156,7 @@ def one_shot(task):
     obs = synthetic_shot(recipe, rng, explicit=explicit, shot_id=index)
     truth = dict(obs.truth)
     row = {"shot": index, "truth": {k: truth[k] for k in (*QUANTITIES, "rho_ratio")}}
-    direct = analyse(obs, smooth_bins=6.0)
+    direct = analyse(obs)
     row["direct"] = {
         "status": direct.status,
         "canopy_height": float(direct.canopy_height),

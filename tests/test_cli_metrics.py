@@ -66,7 +66,44 @@ def test_metrics_on_a_lidarinv_file_and_missing_file(tmp_path, capsys):
     samples = 10.0 + 80.0 * np.exp(-0.5 * ((axis - 9.0) / 0.9) ** 2) + rng.standard_normal(300)
     path = tmp_path / "own.h5"
     write_observations(path, [Observation(samples, axis, shot_id=5)])
-    assert main(["metrics", str(path)]) == 0
+    assert main(["metrics", str(path)]) == 1  # the file names no instrument
+    assert "which instrument" in capsys.readouterr().out
+    assert main(["metrics", str(path), "--instrument", "gedi"]) == 0
+    assert "ok" in capsys.readouterr().out
+    named = tmp_path / "named.h5"
+    write_observations(named, [Observation(samples, axis, shot_id=5, instrument="slicer")])
+    assert main(["metrics", str(named)]) == 0
     assert "ok" in capsys.readouterr().out
     assert main(["metrics", str(tmp_path / "missing.h5")]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+def test_metrics_csv_and_json_of_real_shots(tmp_path, capsys):
+    """The shipped GEDI example: a CSV a GIS can load (lat/lon, ground, RH, cover, PAVD,
+    flags) and JSON with the same records; shot numbers stay integers."""
+    import csv
+
+    from lidarinv.io import example_file
+
+    out_csv, out_json = tmp_path / "m.csv", tmp_path / "m.json"
+    args = [
+        "metrics",
+        str(example_file("gedi-l1b")),
+        "--csv",
+        str(out_csv),
+        "--json",
+        str(out_json),
+    ]
+    assert main(args) == 0
+    rows = list(csv.DictReader(out_csv.open()))
+    records = json.loads(out_json.read_text())
+    assert len(rows) == len(records) > 10
+    assert all(isinstance(r["shot_id"], int) and r["shot_id"] > 10**15 for r in records)
+    for key in ("latitude", "longitude", "ground", "rh98", "cover", "pavd_0_5", "quality"):
+        assert key in rows[0]
+    assert all(-90 <= float(r["latitude"]) <= 90 for r in rows if r["status"] == "ok")
+    assert (
+        main(["metrics", str(example_file("gedi-l1b")), "--csv", str(tmp_path / "no" / "m.csv")])
+        == 2
+    )
+    assert "does not exist" in capsys.readouterr().err

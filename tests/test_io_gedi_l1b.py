@@ -8,7 +8,7 @@ from lidarinv.io import detect_format, iter_observations
 from lidarinv.observe import Observation, ShotError
 
 
-def write_gedi(path, beams, tx_len=32):
+def write_gedi(path, beams, tx_len=64):
     """Write a GEDI-L1B-layout file.
 
     ``beams`` maps a beam name to a list of shots, each a dict with ``rx`` (samples in
@@ -26,7 +26,7 @@ def write_gedi(path, beams, tx_len=32):
             )
             g["rx_sample_start_index"] = starts
             n = len(shots)
-            tx = np.exp(-0.5 * ((np.arange(tx_len) - 12.0) / 6.4) ** 2) * 200 + 10
+            tx = np.exp(-0.5 * ((np.arange(tx_len) - 30.0) / 6.4) ** 2) * 200 + 10
             g["txwaveform"] = np.tile(tx, n).astype(np.float32)
             g["tx_sample_count"] = np.full(n, tx_len, np.uint16)
             g["tx_sample_start_index"] = (1 + tx_len * np.arange(n)).astype(np.uint64)
@@ -83,7 +83,8 @@ def test_detect_and_read_every_shot(gedi_file):
     )
     assert first.bin_size == pytest.approx(0.15)
     assert first.noise_mean == 230.0 and first.noise_sigma == 2.5
-    assert first.pulse.size == 32 and first.pulse_ns == 1.0
+    assert first.pulse.size == 64 and first.pulse_ns == 1.0
+    assert first.instrument == "gedi" and isinstance(first.shot_id, int)
     assert first.metadata["beam"] == "BEAM0000"
     assert first.metadata["latitude"] == pytest.approx(45.0)
     assert shots[3].n_bins == 600  # windows differ in length between shots

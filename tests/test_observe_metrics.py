@@ -93,12 +93,47 @@ def test_cover_of_a_noisy_slab_observation():
     covers = []
     for _ in range(10):
         obs = observe(wf, gain=3000.0, baseline=50.0, noise_sigma=1.0, rng=rng,
-                      ground_elevation=812.0)  # fmt: skip
+                      ground_elevation=812.0, instrument=inst)  # fmt: skip
         result = analyse(obs)
         assert result.ok
-        assert result.canopy_height == pytest.approx(20.0, abs=2.0)
+        # the signal start lies a couple of smoothed-pulse σ (1.35 m) above the slab's top
+        assert 20.0 < result.canopy_height < 23.5
         covers.append(result.cover)
     assert np.mean(covers) == pytest.approx(exact, abs=0.01)
+
+
+def test_asymmetric_ground_return_needs_its_pulse_cdf():
+    """A ground return with a tail below its peak (GEDI's pulse) over a slab: mirroring
+    the energy below the peak overstates the ground; the pulse's own CDF does not."""
+    from forward.pulse import MeasuredPulse
+    from lidarinv.observe.instrument import ground_return_cdf
+
+    times = np.arange(60.0)
+    tailed = np.where(times < 20, np.exp(-0.5 * ((times - 20) / 3.0) ** 2),
+                      np.exp(-(times - 20) / 8.0))  # fmt: skip
+    inst = fw.instrument_preset("gedi").with_overrides(pulse=MeasuredPulse(tailed, 1.0))
+    stand = fw.Stand.from_arrays(x=[0.0], y=[0.0], height=[20.0], crown_length=[8.0],
+                                 crown_radius=[200.0], favd=[0.3], shape="cylinder")  # fmt: skip
+    heights = np.arange(-80, 220) * inst.bin_height
+    wf = fw.WaveformSimulator(inst).simulate(stand, center=(0.0, 0.0), heights=heights)
+    exact = 1 - np.exp(-inst.extinction_per_favd * 0.3 * 8.0)
+    kwargs = {"rho_ratio": 0.45 / 0.3, "extinction": inst.extinction_per_favd}
+    mirrored = gap_profile(wf.samples, wf.heights, 0.0, **kwargs).cover
+    with_cdf = gap_profile(wf.samples, wf.heights, 0.0, ground_cdf=ground_return_cdf(inst.pulse),
+                           **kwargs).cover  # fmt: skip
+    assert with_cdf == pytest.approx(exact, abs=2e-3)
+    assert mirrored < exact - 0.05
+
+
+def test_pavd_layers_integrate_to_the_pai():
+    inst, wf = _slab(0.3)
+    profile = gap_profile(wf.samples, wf.heights, 0.0, extinction=inst.extinction_per_favd)
+    layers = profile.layer_pavd(5.0)
+    assert layers.size == int(np.ceil(profile.height[-1] / 5.0))
+    assert np.sum(layers) * 5.0 == pytest.approx(profile.pai, rel=1e-9)
+    # the slab's top 5 m (15–20 m) hold 1.5 m² m⁻²; the pulse spreads some above 20 m
+    assert (layers[3] + layers[4]) * 5.0 == pytest.approx(0.3 * 5.0, rel=0.02)
+    assert np.all(np.abs(layers[:2]) < 1e-3)
 
 
 def test_gap_profile_rejects_a_ground_outside_the_window():

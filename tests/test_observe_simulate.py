@@ -1,10 +1,9 @@
-"""The observation model and robust noise estimation."""
+"""The observation model: read and shot noise, correlated noise, quantisation, censoring."""
 
 import numpy as np
 import pytest
 
-import forward as fw
-from lidarinv.observe import estimate_noise, noise_floor, observe
+from lidarinv.observe import observe
 
 
 def _flat(n=20000, level=0.0):
@@ -61,38 +60,22 @@ def test_observe_rejects_bad_input(rng):
         observe(w, heights=h, gain=1, baseline=0, noise_sigma=1, rng=np.random.RandomState(1))
 
 
-@pytest.fixture(scope="module")
-def forest_waveform():
-    inst = fw.instrument_preset("gedi")
-    stand = fw.Stand.from_arrays(x=[0.0, 4.0, -3.0], y=[0.0, -2.0, 3.0], height=[22.0, 17.0, 12.0],
-                                 crown_length=[9.0, 7.0, 5.0], crown_radius=[4.0, 3.5, 3.0],
-                                 favd=0.6, shape="ellipsoid")  # fmt: skip
-    heights = np.arange(-100, 500) * inst.bin_height  # signal in ~1/3 of the window
-    return fw.WaveformSimulator(inst).simulate(stand, center=(0.0, 0.0), heights=heights)
+def test_correlated_read_noise_has_the_filter_autocorrelation(rng):
+    w, h = _flat(40000)
+    kernel = np.exp(-0.5 * (np.arange(-6, 7) / 2.0) ** 2)
+    obs = observe(w, heights=h, gain=1.0, baseline=5.0, noise_sigma=2.0, rng=rng,
+                  noise_filter=kernel)  # fmt: skip
+    x = obs.samples - 5.0
+    assert x.std() == pytest.approx(2.0, rel=0.03)
+    expected = [np.sum(kernel[:-k] * kernel[k:]) / np.sum(kernel**2) for k in (1, 2, 3)]
+    measured = [np.mean(x[:-k] * x[k:]) / x.var() for k in (1, 2, 3)]
+    np.testing.assert_allclose(measured, expected, atol=0.03)
+    with pytest.raises(ValueError, match="noise filter"):
+        observe(w, heights=h, gain=1, baseline=0, noise_sigma=1, rng=rng, noise_filter=[0.0])
 
 
-@pytest.mark.parametrize("method", ["ends", "histogram"])
-def test_noise_estimates_are_unbiased_on_forest_waveforms(forest_waveform, method):
-    rng = np.random.default_rng(7)
-    means, sigmas = [], []
-    for _ in range(200):
-        obs = observe(forest_waveform, gain=300.0, baseline=20.0, noise_sigma=1.0, rng=rng)
-        est = estimate_noise(obs.samples, method=method)
-        means.append(est.mean)
-        sigmas.append(est.sigma)
-    # the returns must not pull the estimates up (ends: ≤ 0.05σ; histogram: ≤ 0.1σ)
-    assert np.mean(means) == pytest.approx(20.0, abs=0.05 if method == "ends" else 0.1)
-    assert np.mean(sigmas) == pytest.approx(1.0, rel=0.05)
-    assert np.std(means) < 0.3
-
-
-def test_noise_floor_and_bad_noise_input():
-    assert noise_floor(10.0, 2.0, 3.0) == 16.0
-    with pytest.raises(ValueError):
-        noise_floor(np.nan, 1.0, 3.0)
-    with pytest.raises(ValueError, match="NaN"):
-        estimate_noise([1.0, np.nan, 2.0])
-    with pytest.raises(ValueError, match="unknown noise method"):
-        estimate_noise(np.zeros(50), method="magic")
-    with pytest.raises(ValueError, match="too short"):
-        estimate_noise(np.zeros(10))
+def test_the_observation_records_its_instrument(rng, gedi):
+    w, h = _flat(100)
+    assert observe(w, heights=h, gain=1, baseline=0, noise_sigma=1, rng=rng).instrument is None
+    obs = observe(w, heights=h, gain=1, baseline=0, noise_sigma=1, rng=rng, instrument=gedi)
+    assert obs.instrument == "gedi"

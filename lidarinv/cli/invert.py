@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 
+from forward.instrument import INSTRUMENT_PRESETS
 from lidarinv.io.formats import FORMATS, iter_observations
 from lidarinv.observe.observation import ShotError
 
@@ -24,7 +25,11 @@ def add_arguments(parser) -> None:
         "--shot", action="append", help="shot id to invert (repeatable; default: the first)"
     )
     parser.add_argument("--priors", type=Path, help="TOML file of prior overrides")
-    parser.add_argument("--instrument", default="gedi", help="instrument preset (pulse, optics)")
+    parser.add_argument(
+        "--instrument",
+        choices=sorted(INSTRUMENT_PRESETS),
+        help="instrument preset (pulse, optics); default: the one the file names",
+    )
     parser.add_argument("--max-steps", type=int, help="cap on sampler steps")
     parser.add_argument("--walkers", type=int, help="number of walkers")
     parser.add_argument("--seed", type=int, default=0, help="random seed")

@@ -184,7 +184,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
         observed=problem.window.samples,
         censored=problem.window.censored,
         predictive=predictive,
-        noise_floor=float(a.noise_mean + problem.settings.n_sigma * a.noise_sigma),
+        noise_floor=float(a.start_floor),
         priors=space.describe(),
         settings=problem.settings.describe(),
         truth=truth,

@@ -4,12 +4,11 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from forward.constants import SPEED_OF_LIGHT_M_PER_NS
 from forward.expected import ExpectedWaveformModel, ModelSettings
-from forward.instrument import instrument_preset
-from forward.pulse import MeasuredPulse
 from lidarinv.observe.analyse import analyse
+from lidarinv.observe.instrument import shot_instrument
 from lidarinv.observe.observation import Observation
+from lidarinv.observe.processing import ProcessingSettings
 
 from .coordinates import DEFAULT_RIDGES
 from .discrepancy import DISCREPANCY_MODELS
@@ -29,13 +28,14 @@ class InversionSettings:
 
     Parameters
     ----------
-    instrument : str
-        Instrument preset (``gedi``, ``lvis``, ``slicer``); the bin height is taken from
-        the observation.
+    instrument : str or None
+        Instrument preset (``gedi``, ``lvis``, ``slicer``) overriding the one the file
+        names; None for the file's. The bin height is taken from the observation.
     use_measured_pulse : bool
         Use the shot's transmit pulse when the file has one.
-    noise_method : str
-        Noise estimate for the priors: ``auto``, ``ends``, ``histogram`` or ``product``.
+    processing : lidarinv.observe.ProcessingSettings or None
+        How the shot is analysed (noise, signal extent, ground); None for the defaults of
+        its instrument, the same as ``lidarinv metrics`` uses.
     marginalise_gain : bool
         Integrate the gain out of the likelihood analytically (:mod:`.marginal`) where
         that is exact: no shot noise, a discrepancy fixed by the observation (not
@@ -48,8 +48,6 @@ class InversionSettings:
         the signal-free bins (two fewer free parameters; a GEDI window has hundreds of such
         bins, so the estimates are far tighter than anything else in the posterior). A
         priors-file entry for either still takes precedence.
-    n_sigma : float
-        Signal threshold above the noise mean, in σ.
     ground_prior_sd_m : float (m) or None
         Sd of the ground-elevation prior, a normal centred on the detected ground peak;
         None for one bin height, or the peak fit's uncertainty if larger. Low vegetation
@@ -109,12 +107,11 @@ class InversionSettings:
     model : forward.expected.ModelSettings
     """
 
-    instrument: str = "gedi"
+    instrument: str | None = None
     use_measured_pulse: bool = True
-    noise_method: str = "auto"
+    processing: ProcessingSettings | None = None
     marginalise_gain: bool = True
     sample_noise: bool = True
-    n_sigma: float = 4.0
     ground_prior_sd_m: float | None = None
     margin_above_m: float = 10.0
     margin_below_m: float = 5.0
@@ -152,8 +149,9 @@ class InversionSettings:
         return cls(priors=priors, **changes)
 
     def describe(self) -> dict:
-        nested = ("priors", "sampler", "model", "realisations")
+        nested = ("priors", "sampler", "model", "realisations", "processing")
         out = {k: v for k, v in self.__dict__.items() if k not in nested}
+        out["processing"] = None if self.processing is None else asdict(self.processing)
         out["realisations"] = asdict(self.realisations)
         out["shape_pair"] = list(self.shape_pair)
         out["ridges"] = list(self.ridges)
@@ -185,17 +183,6 @@ class InversionProblem:
     @property
     def space(self):
         return self.log_posterior.space
-
-
-def shot_instrument(obs: Observation, settings: InversionSettings):
-    """The preset instrument with the observation's bin and, if any, its transmit pulse."""
-    bin_ns = 2.0 * obs.bin_size / SPEED_OF_LIGHT_M_PER_NS
-    instrument = instrument_preset(settings.instrument, bin_ns=bin_ns)
-    if settings.use_measured_pulse and obs.pulse is not None and np.isfinite(obs.pulse_ns):
-        ends = np.concatenate([obs.pulse[: max(2, obs.pulse.size // 10)], obs.pulse[-2:]])
-        pulse = MeasuredPulse(obs.pulse - np.median(ends), float(obs.pulse_ns))
-        instrument = instrument.with_overrides(pulse=pulse)
-    return instrument
 
 
 def pulse_quantiles(pulse, tail):
@@ -232,14 +219,11 @@ def _fixed_discrepancy(window, analysis, settings, smooth_bins):
 def build_problem(obs: Observation, settings: InversionSettings | None = None) -> InversionProblem:
     """Analyse the shot, choose the window, set the shot's priors and build the posterior."""
     settings = InversionSettings() if settings is None else settings
-    instrument = shot_instrument(obs, settings)
-    pulse_low, pulse_high = pulse_quantiles(instrument.pulse, 1e-3)
-    # smoothing over the pulse width finds faint canopy returns
-    one_sigma = pulse_quantiles(instrument.pulse, 0.1587)
-    sigma_bins = max(1.0, 0.5 * (one_sigma[1] - one_sigma[0]) / obs.bin_size)
-    analysis = analyse(
-        obs, noise=settings.noise_method, n_sigma=settings.n_sigma, smooth_bins=sigma_bins
+    instrument = shot_instrument(
+        obs, settings.instrument, measured_pulse=settings.use_measured_pulse
     )
+    pulse_low, pulse_high = pulse_quantiles(instrument.pulse, 1e-3)
+    analysis = analyse(obs, settings.processing, instrument=instrument)
     if not analysis.ok:
         raise ValueError(f"shot {obs.shot_id}: {analysis.status}: {analysis.reason}")
     lo, hi = _window_bounds(obs, analysis, settings, pulse_low, pulse_high)

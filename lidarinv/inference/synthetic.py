@@ -137,6 +137,7 @@ def synthetic_shot(
         noise_sigma=recipe.noise_sigma,
         rng=rng,
         shot_id=shot_id,
+        instrument=recipe.instrument,
     )
     obs.truth.update(true_values(p, recipe.gain, recipe.baseline, recipe.noise_sigma))
     obs.truth["ground_elevation"] = 0.0

@@ -3,18 +3,21 @@
 Layout used: groups ``BEAMxxxx``, each holding ``rxwaveform`` (all shots' samples
 concatenated, in time order) sliced by ``rx_sample_start_index`` (1-based) and
 ``rx_sample_count``; ``txwaveform`` with ``tx_sample_start_index``/``tx_sample_count``;
-``shot_number``, ``noise_mean_corrected``, ``noise_stddev_corrected``; and
-``geolocation/elevation_bin0``, ``elevation_lastbin``, ``latitude_bin0``,
-``longitude_bin0``. The elevation axis runs linearly from bin 0 to the last bin.
+``shot_number``, ``noise_mean_corrected``, ``noise_stddev_corrected``,
+``stale_return_flag``; and ``geolocation/elevation_bin0``, ``elevation_lastbin``,
+``latitude_bin0``, ``longitude_bin0``, ``latitude_lastbin``, ``longitude_lastbin``. The
+elevation axis runs linearly from bin 0 to the last bin. Shots carry the instrument name
+``"gedi"`` and their ``txwaveform`` as the pulse.
 """
 
 import re
 
 import numpy as np
 
-from ._common import build, chunks, read_rows, scalar, select_shots
+from ._common import build, chunks, read_rows, select_shots
 
 NAME = "gedi-l1b"
+INSTRUMENT = "gedi"
 BIN_NS = 1.0
 _BEAM = re.compile(r"BEAM\d{4}")
 _REQUIRED = (
@@ -78,8 +81,12 @@ def iter_shots(handle, beam, shots=None):
         count = read_rows(group["rx_sample_count"], lo, hi, part).astype(np.int64)
         top = read_rows(group["geolocation/elevation_bin0"], lo, hi, part)
         bottom = read_rows(group["geolocation/elevation_lastbin"], lo, hi, part)
-        latitude = _optional(group, "geolocation/latitude_bin0", lo, hi, part)
-        longitude = _optional(group, "geolocation/longitude_bin0", lo, hi, part)
+        position = {
+            f"{name}_{end}": _optional(group, f"geolocation/{name}_{field}", lo, hi, part)
+            for name in ("latitude", "longitude")
+            for end, field in (("top", "bin0"), ("bottom", "lastbin"))
+        }
+        stale = _optional(group, "stale_return_flag", lo, hi, part, fill=0)
         noise_mean = _optional(group, "noise_mean_corrected", lo, hi, part)
         noise_sd = _optional(group, "noise_stddev_corrected", lo, hi, part)
         block_lo = max(int(start.min()), 0)
@@ -92,10 +99,12 @@ def iter_shots(handle, beam, shots=None):
             metadata = {
                 "beam": name,
                 "index": int(part[i]),
-                "latitude": float(latitude[i]),
-                "longitude": float(longitude[i]),
+                "latitude": float(position["latitude_top"][i]),
+                "longitude": float(position["longitude_top"][i]),
+                **{key: float(values[i]) for key, values in position.items()},
+                "stale_return": bool(stale[i]),
             }
-            shot_id = scalar(shot_number[i])
+            shot_id = int(shot_number[i])
             first, size = int(start[i]), int(count[i])
             if first < 0 or size < 0 or first + size > rx.shape[0]:
                 yield _error(shot_id, metadata, first, size, rx.shape[0])
@@ -116,6 +125,7 @@ def iter_shots(handle, beam, shots=None):
                 noise_sigma=float(noise_sd[i]),
                 pulse=pulse,
                 pulse_ns=BIN_NS,
+                instrument=INSTRUMENT,
             )
 
 

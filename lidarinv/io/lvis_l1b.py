@@ -2,8 +2,10 @@
 
 Layout used: root datasets ``RXWAVE`` and ``TXWAVE`` [shots × bins] in time order,
 ``Z0`` (elevation of the first bin) and ``Z{N-1}`` (the last; N is 1024, 1216, 528 … by
-release), ``LFID``, ``SHOTNUMBER``, ``LON0`` and ``LAT0``. The elevation axis is linear
-from ``Z0`` to ``Z{N-1}``.
+release), ``LFID``, ``SHOTNUMBER``, ``LON0``, ``LAT0``, ``LON{N-1}``, ``LAT{N-1}`` and
+``SIGMEAN`` (the noise mean computed in flight). The elevation axis is linear from ``Z0``
+to ``Z{N-1}``. Shot numbers and LFIDs are integers even where the file stores them as
+floats; shots carry the instrument name ``"lvis"`` and their ``TXWAVE`` as the pulse.
 """
 
 import re
@@ -15,6 +17,7 @@ from forward.constants import SPEED_OF_LIGHT_M_PER_NS
 from ._common import build, chunks, read_rows, scalar, select_shots
 
 NAME = "lvis-l1b"
+INSTRUMENT = "lvis"
 _Z = re.compile(r"Z(\d+)")
 
 
@@ -53,6 +56,14 @@ def _column(handle, name, lo, hi, part):
     return np.full(part.size, np.nan)
 
 
+def integer_id(value):
+    """A shot number or LFID as an int (files may store them as floats)."""
+    value = scalar(value)
+    if isinstance(value, float) and np.isfinite(value) and value == int(value):
+        return int(value)
+    return value
+
+
 def iter_shots(handle, beam=None, shots=None):
     """Observations (elevation axis, ascending), streamed in chunks of shots."""
     if beam is not None:
@@ -67,21 +78,30 @@ def iter_shots(handle, beam=None, shots=None):
         bottom = read_rows(handle[z_last], lo, hi, part)
         shot_number = _column(handle, "SHOTNUMBER", lo, hi, part)
         lfid = _column(handle, "LFID", lo, hi, part)
-        lon, lat = _column(handle, "LON0", lo, hi, part), _column(handle, "LAT0", lo, hi, part)
+        last = z_last.removeprefix("Z")
+        position = {
+            f"{name}_{end}": _column(handle, f"{key}{index}", lo, hi, part)
+            for name, key in (("latitude", "LAT"), ("longitude", "LON"))
+            for end, index in (("top", "0"), ("bottom", last))
+        }
+        noise_mean = _column(handle, "SIGMEAN", lo, hi, part)
         for i in range(part.size):
             step = abs(float(top[i]) - float(bottom[i])) / (n_bins - 1)
             metadata = {
                 "index": int(part[i]),
-                "lfid": scalar(lfid[i]),
-                "latitude": float(lat[i]),
-                "longitude": float(lon[i]),
+                "lfid": integer_id(lfid[i]),
+                "latitude": float(position["latitude_top"][i]),
+                "longitude": float(position["longitude_top"][i]),
+                **{key: float(values[i]) for key, values in position.items()},
             }
             yield build(
-                scalar(shot_number[i]),
+                integer_id(shot_number[i]),
                 metadata,
                 samples=waves[i],
                 axis=np.linspace(float(top[i]), float(bottom[i]), n_bins),
                 axis_kind="elevation",
                 pulse=None if pulses is None else pulses[i],
                 pulse_ns=2 * step / SPEED_OF_LIGHT_M_PER_NS,
+                noise_mean=float(noise_mean[i]),
+                instrument=INSTRUMENT,
             )

@@ -4,7 +4,8 @@ Layout (format version 1)::
 
     /                        attrs: content = "lidarinv observed waveforms",
                                     layout_version = 1, lidarinv_version
-    /instrument              attrs: the instrument description (optional)
+    /instrument              attrs: the instrument description; ``instrument`` names the
+                             preset that recorded the shots (optional)
     /waveforms               attrs: axis_kind ("height" | "elevation"), n_shots
         samples       [n, B]  float64  digitiser units, lowest bin first, NaN padding
         sample_count  [n]     int32    bins used in each row
@@ -66,7 +67,8 @@ def write_observations(path, observations, *, stand=None, instrument=None, attrs
     stand : forward.Stand, optional
         Stored under ``/stand`` (the stem map of simulated shots).
     instrument : forward.Instrument or dict, optional
-        Stored as attributes of ``/instrument``.
+        Stored as attributes of ``/instrument``. Default: the instrument named by the
+        observations (they must agree).
     attrs : dict, optional
         Extra root attributes.
     """
@@ -76,6 +78,11 @@ def write_observations(path, observations, *, stand=None, instrument=None, attrs
     kinds = {o.axis_kind for o in observations}
     if len(kinds) > 1:
         raise ValueError(f"observations mix axis kinds {sorted(kinds)}; write them separately")
+    names = {o.instrument for o in observations}
+    if len(names) > 1:
+        raise ValueError(f"observations mix instruments {sorted(map(str, names))}")
+    if instrument is None and names != {None}:
+        instrument = {"instrument": names.pop()}
     from lidarinv import __version__
 
     n = len(observations)
@@ -164,6 +171,9 @@ def iter_shots(handle, beam=None, shots=None):
         raise ValueError("this file was written by a newer lidarinv layout version")
     group = handle["waveforms"]
     kind = str(scalar(group.attrs["axis_kind"]))
+    instrument = None
+    if "instrument" in handle and "instrument" in handle["instrument"].attrs:
+        instrument = str(scalar(handle["instrument"].attrs["instrument"]))
     n = group["sample_count"].shape[0]
     for part, lo, hi in chunks(select_shots(n, shots)):
         get = {
@@ -190,6 +200,7 @@ def iter_shots(handle, beam=None, shots=None):
                 pulse=pulse,
                 pulse_ns=float(get["pulse_ns"][i]) if "pulse_ns" in get else np.nan,
                 truth=truths,
+                instrument=instrument,
                 **{k: float(get[k][i]) for k in _SCALARS},
             )
 

@@ -1,38 +1,47 @@
-"""Observations: the observation model, noise, signal extent, ground peak, alignment and
-direct metrics. Everything between a waveform file and the inversion."""
+"""Observations: the observation model, noise, signal extent, ground peak, quality flags
+and direct metrics. Everything between a waveform file and the inversion."""
 
-from .align import AlignedAverage, align_and_average
-from .analyse import STATUSES, ShotAnalysis, analyse, resolve_noise
-from .ground import GroundPeak, find_ground
+from .analyse import QUALITY_FLAGS, STATUSES, ShotAnalysis, analyse
+from .ground import GroundPeak, Mode, find_ground, find_modes
+from .instrument import pulse_fwhm_m, shot_instrument, transmit_pulse
 from .metrics import ALL_PERCENTILES, GapProfile, gap_profile, rh_metrics
-from .noise import NoiseEstimate, estimate_noise, half_sample_mode, noise_floor
+from .noise import NoiseModel, estimate_noise, noise_floor, product_noise
 from .observation import AXIS_KINDS, Observation, ShotError
-from .signal import SignalExtent, signal_extent, smooth, smoothed_noise_factor
+from .processing import PROCESSING_DEFAULTS, ProcessingSettings, processing_settings
+from .quality import clipped_plateau, sensitivity
+from .signal import SignalExtent, signal_extent, smooth
 from .simulate import observe
 
 __all__ = [
     "ALL_PERCENTILES",
     "AXIS_KINDS",
+    "PROCESSING_DEFAULTS",
+    "QUALITY_FLAGS",
     "STATUSES",
-    "AlignedAverage",
     "GapProfile",
     "GroundPeak",
-    "NoiseEstimate",
+    "Mode",
+    "NoiseModel",
     "Observation",
+    "ProcessingSettings",
     "ShotAnalysis",
     "ShotError",
     "SignalExtent",
-    "align_and_average",
     "analyse",
+    "clipped_plateau",
     "estimate_noise",
     "find_ground",
+    "find_modes",
     "gap_profile",
-    "half_sample_mode",
     "noise_floor",
     "observe",
-    "resolve_noise",
+    "processing_settings",
+    "product_noise",
+    "pulse_fwhm_m",
     "rh_metrics",
+    "sensitivity",
+    "shot_instrument",
     "signal_extent",
     "smooth",
-    "smoothed_noise_factor",
+    "transmit_pulse",
 ]

@@ -1,12 +1,39 @@
-"""Ground-peak detection: the lowest significant mode above the floor, to sub-bin precision."""
+"""Ground-peak detection: the lowest significant mode of the smoothed waveform.
+
+The modes of a waveform are the local maxima of its smoothed form (the zero crossings of
+the smoothed first derivative, as in the GEDI L2A and LVIS L2 processing). A mode counts
+when it reaches the back floor and stands out from the trough that separates it from its
+higher neighbour by a few σ of the smoothed noise. The lowest such mode within the
+signal extent is the ground; a single peak with no canopy above it is therefore ground.
+Its centre is the vertex of the parabola through the three smoothed samples at the
+maximum, and its 1-σ uncertainty follows from the measured σ of the smoothed noise's
+slope: a slope error ε moves the vertex by ε / |curvature|.
+"""
 
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import curve_fit
 from scipy.signal import find_peaks
 
-from .signal import smooth, smoothed_noise_factor
+
+@dataclass(frozen=True)
+class Mode:
+    """A local maximum of the smoothed waveform.
+
+    Attributes
+    ----------
+    index : int
+        Bin of the maximum.
+    amplitude : float
+        Smoothed value above the noise mean (digitiser units).
+    prominence : float
+        Height above the higher of the troughs that separate it from higher modes
+        (digitiser units).
+    """
+
+    index: int
+    amplitude: float
+    prominence: float
 
 
 @dataclass(frozen=True)
@@ -16,17 +43,17 @@ class GroundPeak:
     Attributes
     ----------
     position : float (m)
-        Axis value of the peak centre (height or elevation), sub-bin.
+        Axis value of the mode's centre (height or elevation), sub-bin.
     index : float
         Fractional bin index of ``position``.
     uncertainty : float (m)
-        1-σ uncertainty of ``position`` from the fit (usable as a prior width).
+        1-σ uncertainty of ``position`` from the noise (usable as a prior width).
     amplitude : float
-        Peak amplitude above the noise mean (digitiser units).
+        Smoothed amplitude above the noise mean (digitiser units).
     width : float (m)
-        Gaussian σ of the peak.
-    method : str
-        ``"gaussian-fit"`` or ``"parabola"`` (fallback when the fit fails).
+        Half width at half maximum of the mode's lower flank, as a Gaussian σ.
+    n_modes : int
+        Number of significant modes in the signal extent (1: a lone peak).
     """
 
     position: float
@@ -34,122 +61,111 @@ class GroundPeak:
     uncertainty: float
     amplitude: float
     width: float
-    method: str
+    n_modes: int
 
 
-def _gauss(x, amplitude, centre, sigma):
-    return amplitude * np.exp(-0.5 * ((x - centre) / sigma) ** 2)
-
-
-def _lower_half_width(values, peak, level):
-    """Bins from the peak down (towards index 0) to where ``values`` fall below ``level``."""
-    below = np.flatnonzero(values[:peak] < level)
-    return peak - below[-1] if below.size else peak
-
-
-def find_ground(
-    samples,
-    axis,
-    noise_mean: float,
-    noise_sigma: float,
-    *,
-    n_sigma: float = 4.0,
-    smooth_bins: float | None = 2.0,
-    prominence_sigmas: float = 4.0,
-    valid=None,
-    within=None,
-) -> GroundPeak | None:
-    """Locate the ground peak: the lowest significant mode above the noise floor.
-
-    The waveform is smoothed for detection; peaks must exceed the smoothed floor
-    ``noise_mean + n_sigma·σ_s`` and stand out by ``prominence_sigmas·σ_s``. The lowest
-    such peak is then located by a least-squares Gaussian fit to the raw samples over
-    its lower flank and top (the side the canopy cannot reach), excluding invalid
-    (censored or saturated) samples, so a clipped peak is fitted from its flanks.
+def find_modes(smoothed, noise_mean: float, *, floor: float, prominence: float, within=None):
+    """Significant modes of a smoothed waveform, lowest bin first.
 
     Parameters
     ----------
-    samples, axis : arrays
-        Waveform (digitiser units) and ascending axis (m).
-    noise_mean, noise_sigma : float
-        Noise of the raw samples (digitiser units).
-    n_sigma, prominence_sigmas : float
-        Detection thresholds in units of the smoothed noise σ.
-    smooth_bins : float, optional
-        Gaussian smoothing σ (bins) for detection only.
-    valid : array of bool, optional
-        Samples usable in the fit.
+    smoothed : array of float
+        Smoothed waveform (digitiser units), lowest bin first.
+    noise_mean : float
+        Noise mean (digitiser units).
+    floor : float
+        Smallest smoothed value (digitiser units) a mode may have.
+    prominence : float
+        Smallest prominence (digitiser units).
     within : (int, int), optional
-        First and last sample index a peak may lie at, e.g. the signal extent's: a noise
-        spike outside it is not taken for the ground.
+        First and last bin a mode may lie at (e.g. the signal extent's).
+    """
+    values = np.asarray(smoothed, float)
+    peaks, props = find_peaks(values, height=floor, prominence=prominence)
+    if within is not None:
+        keep = (peaks >= within[0]) & (peaks <= within[1])
+        peaks, prominences = peaks[keep], props["prominences"][keep]
+    else:
+        prominences = props["prominences"]
+    return [
+        Mode(int(p), float(values[p] - noise_mean), float(q)) for p, q in zip(peaks, prominences)
+    ]
+
+
+def peak_vertex(values, index: int):
+    """Fractional index of the parabola vertex through ``values[index-1:index+2]`` and the
+    curvature there (per bin²); the vertex is clamped to ±½ bin of ``index``."""
+    if not 0 < index < len(values) - 1:
+        return float(index), np.nan
+    a, b, c = values[index - 1 : index + 2]
+    curvature = float(a - 2.0 * b + c)
+    offset = 0.5 * (a - c) / curvature if curvature < 0 else 0.0
+    return index + float(np.clip(offset, -0.5, 0.5)), curvature
+
+
+def find_ground(
+    smoothed,
+    axis,
+    noise,
+    *,
+    floor: float,
+    prominence_sigmas: float = 3.0,
+    within=None,
+) -> GroundPeak | None:
+    """Locate the ground: the lowest significant mode of the smoothed waveform.
+
+    Parameters
+    ----------
+    smoothed : array of float
+        Smoothed waveform (digitiser units) on the ascending ``axis`` (m).
+    axis : array of float (m)
+        Ascending bin-centre heights or elevations.
+    noise : NoiseModel
+        The shot's noise, with ``smoothed_sigma`` and ``slope_sigma`` measured at the
+        smoothing of ``smoothed``.
+    floor : float
+        Smallest smoothed value (digitiser units) the ground mode may have (the back
+        floor of the signal extent).
+    prominence_sigmas : float
+        Smallest prominence, in σ of the smoothed noise.
+    within : (int, int), optional
+        First and last bin the ground may lie at (the signal extent's).
 
     Returns
     -------
     GroundPeak or None
-        ``None`` when no peak rises above the floor.
+        ``None`` when no mode qualifies.
     """
-    samples = np.asarray(samples, float)
+    values = np.asarray(smoothed, float)
     axis = np.asarray(axis, float)
-    valid = np.ones(samples.shape, bool) if valid is None else np.asarray(valid, bool)
-    sigma_s = max(noise_sigma * smoothed_noise_factor(smooth_bins), 1e-12)
-    smoothed = smooth(samples, smooth_bins) - noise_mean
-    peaks, _ = find_peaks(
-        smoothed, height=n_sigma * sigma_s, prominence=prominence_sigmas * sigma_s
+    modes = find_modes(
+        values,
+        noise.mean,
+        floor=floor,
+        prominence=prominence_sigmas * noise.smoothed_sigma,
+        within=within,
     )
-    if within is not None:
-        peaks = peaks[(peaks >= within[0]) & (peaks <= within[1])]
-    if peaks.size == 0:
+    if not modes:
         return None
-    peak = int(peaks[0])  # lowest on the ascending axis
+    lowest = modes[0]
     step = float(axis[1] - axis[0])
-    height = smoothed[peak]
-    half = max(_lower_half_width(smoothed, peak, 0.5 * height), 1)
-    sigma0 = max(half / np.sqrt(2 * np.log(2)), 0.7)  # bins
-    first = max(peak - int(np.ceil(2.5 * sigma0)), 0)
-    stop = min(peak + max(int(np.ceil(1.0 * sigma0)), 2) + 1, samples.size)
-    window = np.arange(first, stop)
-    window = window[valid[window]]
-    y = samples[window] - noise_mean
-    if window.size >= 4:
-        try:
-            params, cov = curve_fit(
-                _gauss,
-                window.astype(float),
-                y,
-                p0=(max(height, y.max()), float(peak), sigma0),
-                maxfev=2000,
-            )
-            amplitude, centre, width = params
-            err = float(np.sqrt(cov[1, 1])) if np.all(np.isfinite(cov)) else np.nan
-            if amplitude > 0 and first - 1 <= centre <= stop and 0.2 < abs(width) < 10 * sigma0:
-                return GroundPeak(
-                    position=float(axis[0] + centre * step),
-                    index=float(centre),
-                    uncertainty=err * step,
-                    amplitude=float(amplitude),
-                    width=float(abs(width)) * step,
-                    method="gaussian-fit",
-                )
-        except (RuntimeError, ValueError):
-            pass
-    return _parabola(smoothed, axis, peak, sigma0, noise_sigma)
-
-
-def _parabola(values, axis, peak, sigma0, noise_sigma):
-    """Three-point log-parabola vertex on the smoothed waveform (fallback)."""
-    step = float(axis[1] - axis[0])
-    offset = 0.0
-    if 0 < peak < values.size - 1 and np.all(values[peak - 1 : peak + 2] > 0):
-        a, b, c = np.log(values[peak - 1 : peak + 2])
-        denominator = a - 2 * b + c
-        if denominator < 0:
-            offset = float(np.clip(0.5 * (a - c) / denominator, -0.5, 0.5))
-    index = peak + offset
+    index, curvature = peak_vertex(values, lowest.index)
+    if np.isfinite(curvature) and curvature < 0 and np.isfinite(noise.slope_sigma):
+        uncertainty = noise.slope_sigma / -curvature * step
+    else:
+        uncertainty = step / np.sqrt(12.0)
     return GroundPeak(
         position=float(axis[0] + index * step),
-        index=float(index),
-        uncertainty=step / np.sqrt(12.0),
-        amplitude=float(values[peak]),
-        width=float(sigma0 * step),
-        method="parabola",
+        index=index,
+        uncertainty=float(uncertainty),
+        amplitude=lowest.amplitude,
+        width=_lower_width(values - noise.mean, lowest.index) * step,
+        n_modes=len(modes),
     )
+
+
+def _lower_width(values, peak: int) -> float:
+    """Half width at half maximum of the flank below ``peak``, as a Gaussian σ (bins)."""
+    below = np.flatnonzero(values[:peak] < 0.5 * values[peak])
+    half = peak - below[-1] if below.size else peak
+    return max(half, 1) / np.sqrt(2.0 * np.log(2.0))

@@ -108,6 +108,20 @@ class GapProfile:
     pavd: np.ndarray
     canopy_energy: float
     ground_energy: float
+    extinction: float = 0.5
+
+    def layer_pavd(self, layer_m: float = 5.0, n_layers: int | None = None) -> np.ndarray:
+        """Mean PAVD (m² m⁻³) of layers ``layer_m`` thick from the ground up (GEDI L2B
+        ``pavd_z``): the plant area between the layer's edges over its thickness."""
+        if not layer_m > 0:
+            raise ValueError(f"layer thickness must be positive, got {layer_m}")
+        top = self.height[-1]
+        count = max(int(np.ceil(top / layer_m)), 1) if n_layers is None else int(n_layers)
+        edges = np.arange(count + 1) * layer_m
+        area_above = -np.log(self.gap) / self.extinction
+        # plant area above each edge; above the signal start there is none
+        above = np.interp(edges, self.height, area_above, right=0.0)
+        return -np.diff(above) / layer_m
 
 
 def gap_profile(
@@ -120,11 +134,13 @@ def gap_profile(
     end: float | None = None,
     rho_ratio: float = 1.5,
     extinction: float = 0.5,
+    ground_cdf=None,
 ) -> GapProfile:
     """Cover and a PAVD profile by the direct gap-probability method.
 
-    The ground return Rg is twice the energy below the ground peak (the peak mirrored);
-    the canopy return is the rest, Rv. With ρv/ρg = ``rho_ratio``, the gap probability
+    The ground return Rg is the energy below the ground peak over the fraction of a
+    ground return that lies below its peak (a half for a symmetric pulse: the peak
+    mirrored); the canopy return is the rest, Rv. With ρv/ρg = ``rho_ratio``, the gap probability
     below height z is P(z) = 1 − Rv(>z) / (Rv + (ρv/ρg)·Rg), so P(0) is exact for the
     model of the physics conventions when the ground peak is symmetric and clear of the
     canopy. Foliage area above z is −ln P(z) / (k·G·Ω), ``extinction`` = k·G·Ω.
@@ -137,6 +153,11 @@ def gap_profile(
         Assumed ρv/ρg (> 0); GEDI L2B uses 1.5.
     extinction : float
         k·G·Ω (> 0); 0.5 for a spherical leaf angle distribution with a full hot spot.
+    ground_cdf : callable, optional
+        Fraction of the ground return below a height offset from its peak (for the pulse
+        as recorded; :func:`lidarinv.observe.instrument.ground_return_cdf`): the ground
+        energy is then the energy below the peak over ``ground_cdf(0)``. Default: a
+        symmetric return, mirrored about its peak.
     """
     if not (rho_ratio > 0 and extinction > 0):
         raise ValueError("rho_ratio and extinction must be positive")
@@ -148,12 +169,17 @@ def gap_profile(
         return np.interp(z, edges, cumulative, left=0.0, right=cumulative[-1])
 
     total = cumulative[-1]
-    ground_energy = min(2.0 * below(ground), total)
-    canopy_energy = total - ground_energy
     n_layers = max(int(np.ceil((edges[-1] - ground) / step)), 1)
     height = np.arange(n_layers + 1) * step
     z = ground + height
-    canopy_above = np.clip(total - below(z) - below(2 * ground - z), 0.0, None)
+    if ground_cdf is None:  # a symmetric ground return: mirror the energy below its peak
+        ground_energy = min(2.0 * below(ground), total)
+        ground_above = below(2 * ground - z)
+    else:
+        ground_energy = min(below(ground) / float(ground_cdf(0.0)), total)
+        ground_above = ground_energy * (1.0 - ground_cdf(height))
+    canopy_energy = total - ground_energy
+    canopy_above = np.clip(total - below(z) - ground_above, 0.0, None)
     canopy_above = np.minimum.accumulate(canopy_above)  # non-increasing upwards
     canopy_above[0] = canopy_energy
     scale = canopy_energy + rho_ratio * ground_energy
@@ -168,4 +194,5 @@ def gap_profile(
         pavd=pavd,
         canopy_energy=float(canopy_energy),
         ground_energy=float(ground_energy),
+        extinction=float(extinction),
     )

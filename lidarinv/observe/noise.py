@@ -1,25 +1,84 @@
-"""Robust estimation of the noise mean and σ of a waveform, and the noise floor."""
+"""The noise of a recorded waveform: mean, σ and autocorrelation from its signal-free bins.
 
-from dataclasses import dataclass
+Real digitisers add noise that is correlated from bin to bin (filtered detector noise) and
+record integer or rounded samples. Everything here is measured on the shot's own
+signal-free bins, never derived from a white-noise formula, and never from a median
+absolute deviation (which quantisation can make zero): the mean and σ are those of the
+samples kept by iterative σ-clipping, the autocorrelation is the sample autocorrelation
+over pairs of signal-free bins, and the σ of the *smoothed* noise is the larger of its
+value measured on the smoothed signal-free bins and its value computed from the measured
+σ and autocorrelation.
+"""
+
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import curve_fit
 
-#: σ of a normal variable per unit median absolute deviation.
-MAD_TO_SIGMA = 1.482602218505602
+#: Samples beyond this many σ from the mean are dropped when estimating the noise.
+CLIP_SIGMAS = 4.0
+#: Fewest signal-free bins from which the noise is estimated.
+MIN_NOISE_BINS = 16
 
 
 @dataclass(frozen=True)
-class NoiseEstimate:
-    """Noise mean and standard deviation (digitiser units) and how they were obtained."""
+class NoiseModel:
+    """The noise of one shot (digitiser units).
+
+    Attributes
+    ----------
+    mean : float
+        Noise mean (baseline) b.
+    sigma : float
+        Standard deviation σn of the recorded samples (quantisation included).
+    autocorrelation : array
+        R(0), R(1), …, R(K): correlation of the noise at lags of 0 to K bins (R(0) = 1).
+    n_bins : int
+        Number of signal-free bins the estimate used (0 for product values).
+    source : str
+        ``"samples"`` (measured here) or ``"product"`` (the file's own noise fields).
+    quantum : float
+        Spacing of the recorded values (1 for integer counts; 0 when continuous).
+    smoothing_bins : float
+        Gaussian smoothing σ (bins) that ``smoothed_sigma`` and ``slope_sigma`` refer to.
+    smoothed_sigma : float
+        σ of the noise after that smoothing, measured on the smoothed signal-free bins.
+    slope_sigma : float
+        σ of the smoothed noise's central difference (digitiser units per bin).
+    product_mean, product_sigma : float
+        The file's own noise fields, NaN when it has none (kept as a cross-check).
+    """
 
     mean: float
     sigma: float
-    method: str
+    autocorrelation: np.ndarray = field(default_factory=lambda: np.ones(1))
+    n_bins: int = 0
+    source: str = "samples"
+    quantum: float = 0.0
+    smoothing_bins: float = 0.0
+    smoothed_sigma: float = np.nan
+    slope_sigma: float = np.nan
+    product_mean: float = np.nan
+    product_sigma: float = np.nan
 
-    def floor(self, n_sigma: float) -> float:
-        """Noise floor mean + n·σ (digitiser units)."""
-        return noise_floor(self.mean, self.sigma, n_sigma)
+    def detection_floor(self, n_sigmas: float, units: str = "smoothed") -> float:
+        """The floor ``mean + n_sigmas·σ`` for the smoothed waveform, σ being that of the
+        smoothed noise (``units="smoothed"``) or of the recorded noise (``"raw"``)."""
+        sigma = {"smoothed": self.smoothed_sigma, "raw": self.sigma}[units]
+        return noise_floor(self.mean, sigma, n_sigmas)
+
+    def describe(self) -> dict:
+        """Scalars for tables and JSON (the autocorrelation's first three lags)."""
+        lags = {f"noise_r{k}": float(r) for k, r in enumerate(self.autocorrelation[1:4], 1)}
+        return {
+            "noise_mean": self.mean,
+            "noise_sigma": self.sigma,
+            "noise_smoothed_sigma": self.smoothed_sigma,
+            "noise_source": self.source,
+            "noise_bins": self.n_bins,
+            "product_noise_mean": self.product_mean,
+            "product_noise_sigma": self.product_sigma,
+            **lags,
+        }
 
 
 def noise_floor(mean: float, sigma: float, n_sigma: float) -> float:
@@ -29,129 +88,179 @@ def noise_floor(mean: float, sigma: float, n_sigma: float) -> float:
     return float(mean + n_sigma * sigma)
 
 
-def _robust(values, clip=3.0):
-    """Median/MAD, then the mean and σ of the samples within ±clip·σ (more efficient)."""
-    centre = float(np.median(values))
-    sigma = MAD_TO_SIGMA * float(np.median(np.abs(values - centre)))
-    if sigma <= 0:
-        return centre, sigma
-    kept = values[np.abs(values - centre) <= clip * sigma]
-    # σ of a normal truncated at ±3σ is 0.9865σ
-    return float(kept.mean()), float(kept.std()) / 0.98654
+def end_bins(n_bins: int, fraction: float = 0.125, minimum: int = MIN_NOISE_BINS) -> np.ndarray:
+    """Mask of the first and last ``fraction`` of a window: the first guess of where the
+    noise is, before the signal has been found."""
+    k = max(minimum, round(fraction * n_bins))
+    if 2 * k > n_bins:
+        raise ValueError(f"a window of {n_bins} bins is too short to hold noise at its ends")
+    mask = np.zeros(n_bins, bool)
+    mask[:k] = mask[-k:] = True
+    return mask
 
 
-def _from_ends(samples, valid, end_fraction, min_bins):
-    n = samples.size
-    k = max(min_bins, round(end_fraction * n))
-    if 2 * k > n:
-        raise ValueError(f"waveform of {n} bins is too short for {k}-bin noise ends")
-    ends = []
-    for part, ok in ((samples[:k], valid[:k]), (samples[-k:], valid[-k:])):
-        part = part[ok]
-        if part.size >= min_bins:
-            ends.append((part, *_robust(part)))
-    if not ends:
-        raise ValueError("too few uncensored samples at the waveform ends to estimate noise")
-    if len(ends) == 2:
-        (a, ma, sa), (b, mb, sb) = ends
-        spread = max(sa, sb, 1e-12) * np.sqrt(2.0 / min(a.size, b.size))
-        if abs(ma - mb) <= 4.0 * spread + 1e-12:  # both ends are noise: pool them
-            return _robust(np.concatenate([a, b]))
-        # one end holds signal (or a baseline step): keep the quieter end
-        return min(((ma, sa), (mb, sb)), key=lambda ms: ms[0] + ms[1])
-    return ends[0][1:]
+def clipped_mean_sigma(values, clip: float = CLIP_SIGMAS, max_iterations: int = 10):
+    """Mean and σ of the values within ±clip·σ of the mean, iterated to convergence.
 
-
-def half_sample_mode(values) -> float:
-    """Mode of a sample by the half-sample method (Bickel & Frühwirth 2006)."""
-    x = np.sort(np.asarray(values, float))
-    while x.size > 3:
-        h = (x.size + 1) // 2
-        widths = x[h - 1 :] - x[: x.size - h + 1]
-        start = int(np.argmin(widths))
-        x = x[start : start + h]
-    if x.size == 3:
-        x = x[:2] if x[1] - x[0] <= x[2] - x[1] else x[1:]
-    return float(x.mean())
-
-
-def _gaussian(x, count, mean, sigma):
-    return count * np.exp(-0.5 * ((x - mean) / sigma) ** 2)
-
-
-def _from_histogram(samples, valid):
-    x = samples[valid]
-    if x.size < 10:
-        raise ValueError("too few uncensored samples to estimate noise from the histogram")
-    mode = half_sample_mode(x)
-    # the noise peak's lower half is free of signal (returns only add energy)
-    below = mode - x[x <= mode]
-    if below.size < 5:
-        raise ValueError("the sample histogram has no lower half to estimate the noise σ")
-    mean, sigma = mode, MAD_TO_SIGMA * float(np.median(below))
-    if sigma <= 0:
-        return mean, 0.0
-    # refine with a Gaussian fitted to the histogram from 3σ below the mode to 0.5σ above
-    # it, the side of the noise peak that the returns do not reach
-    for _ in range(2):
-        edges = np.arange(mean - 3.0 * sigma, mean + 0.5 * sigma + 1e-9, 0.25 * sigma)
-        counts, edges = np.histogram(x, bins=edges)
-        centres = 0.5 * (edges[1:] + edges[:-1])
-        try:
-            (_, fit_mean, fit_sigma), _ = curve_fit(
-                _gaussian, centres, counts, p0=(counts.max(), mean, sigma), maxfev=2000
-            )
-        except (RuntimeError, ValueError):
+    Starts from the plain mean and σ, so a sample spread below one quantisation step
+    still gives its true (non-zero) σ.
+    """
+    values = np.asarray(values, float)
+    keep = np.ones(values.size, bool)
+    mean, sigma = float(values.mean()), float(values.std())
+    for _ in range(max_iterations):
+        if sigma == 0:
             break
-        if not (np.isfinite(fit_mean) and 0 < abs(fit_sigma) < 3 * sigma):
+        new_keep = np.abs(values - mean) <= clip * sigma
+        if np.array_equal(new_keep, keep):
             break
-        mean, sigma = float(fit_mean), float(abs(fit_sigma))
-    return float(mean), sigma
+        keep = new_keep
+        mean, sigma = float(values[keep].mean()), float(values[keep].std())
+    return mean, sigma
+
+
+def autocorrelation(values, mask, mean: float, max_lag: int) -> np.ndarray:
+    """Sample autocorrelation R(0…max_lag) over pairs of bins that are both in ``mask``.
+
+    Bins outside the mask (signal, spikes, censored samples) break the series, so the
+    signal-free stretches above and below the return are pooled without bridging it.
+    """
+    values = np.asarray(values, float) - mean
+    mask = np.asarray(mask, bool)
+    x = np.where(mask, values, 0.0)
+    variance = float(np.sum(x * x) / max(mask.sum(), 1))
+    out = np.ones(max_lag + 1)
+    if variance <= 0:
+        out[1:] = 0.0
+        return out
+    for lag in range(1, max_lag + 1):
+        both = mask[:-lag] & mask[lag:]
+        pairs = int(both.sum())
+        out[lag] = np.sum(x[:-lag] * x[lag:]) / (pairs * variance) if pairs else 0.0
+    return out
+
+
+def sample_quantum(samples) -> float:
+    """1 when every sample is an integer count, else 0 (continuous values)."""
+    samples = np.asarray(samples, float)
+    return 1.0 if np.all(samples == np.round(samples)) else 0.0
 
 
 def estimate_noise(
-    samples,
-    *,
-    method: str = "ends",
-    valid=None,
-    end_fraction: float = 0.1,
-    min_bins: int = 8,
-) -> NoiseEstimate:
-    """Robust noise mean and σ of one waveform.
+    samples, signal_free=None, *, valid=None, max_lag: int = 32, clip: float = CLIP_SIGMAS
+) -> NoiseModel:
+    """Noise mean, σ and autocorrelation from the signal-free bins of one waveform.
 
     Parameters
     ----------
     samples : array of float
         Waveform samples (digitiser units).
-    method : {"ends", "histogram"}
-        ``"ends"``: median and MAD of the signal-free first and last ``end_fraction`` of
-        the window (the end holding signal is dropped if the two disagree).
-        ``"histogram"``: as Sun & Ranson did for SLICER, the noise is the dominant mode of
-        the sample histogram; its centre is the half-sample mode and σ comes from the
-        lower half of that mode, which returns cannot reach.
+    signal_free : array of bool, optional
+        Bins known to hold no signal; default the first and last eighth of the window.
     valid : array of bool, optional
-        Samples to use (e.g. exclude censored or saturated ones).
-    end_fraction : float
-        Fraction of the window taken at each end for ``"ends"``.
-    min_bins : int
-        Minimum number of samples per end.
+        Samples measured exactly (not censored or saturated); others are left out.
+    max_lag : int
+        Largest lag (bins) of the autocorrelation.
+    clip : float
+        σ-clipping limit that drops spikes from the estimate.
 
     Returns
     -------
-    NoiseEstimate
-        Mean and σ in digitiser units.
+    NoiseModel
+        ``source="samples"``; the smoothed-noise fields are left for
+        :func:`with_smoothed_noise`.
     """
     samples = np.asarray(samples, float)
     if samples.ndim != 1 or samples.size == 0:
         raise ValueError("noise estimation needs a non-empty 1-D waveform")
     if not np.all(np.isfinite(samples)):
         raise ValueError("noise estimation: the waveform has NaN or infinite samples")
-    valid = np.ones(samples.shape, bool) if valid is None else np.asarray(valid, bool)
-    estimators = {
-        "ends": lambda: _from_ends(samples, valid, end_fraction, min_bins),
-        "histogram": lambda: _from_histogram(samples, valid),
-    }
-    if method not in estimators:
-        raise ValueError(f"unknown noise method {method!r}; choose from {list(estimators)}")
-    mean, sigma = estimators[method]()
-    return NoiseEstimate(float(mean), float(sigma), method)
+    free = end_bins(samples.size) if signal_free is None else np.asarray(signal_free, bool)
+    if valid is not None:
+        free = free & np.asarray(valid, bool)
+    if free.sum() < MIN_NOISE_BINS:
+        raise ValueError(
+            f"only {int(free.sum())} signal-free bins (need {MIN_NOISE_BINS}) to estimate noise"
+        )
+    mean, sigma = clipped_mean_sigma(samples[free], clip)
+    kept = free & (np.abs(samples - mean) <= clip * sigma if sigma > 0 else free)
+    return NoiseModel(
+        mean=mean,
+        sigma=sigma,
+        autocorrelation=autocorrelation(samples, kept, mean, max_lag),
+        n_bins=int(free.sum()),
+        source="samples",
+        quantum=sample_quantum(samples[free]),
+    )
+
+
+def filtered_sigma(sigma: float, autocorrelation, weights) -> float:
+    """σ of noise of σ ``sigma`` and the given autocorrelation after a linear filter:
+    σ·√(Σ_ij w_i w_j R(|i − j|)), with R set to zero beyond its first non-positive lag
+    (the usual truncation of a sample autocorrelation, whose far lags are noise)."""
+    r = np.asarray(autocorrelation, float)
+    stop = np.flatnonzero(r <= 0)
+    r = r[: stop[0]] if stop.size else r
+    weights = np.asarray(weights, float)
+    pairs = np.correlate(weights, weights, mode="full")  # Σ_i w_i w_(i+k), k = −K … K
+    centre = weights.size - 1
+    lags = min(r.size - 1, centre)
+    total = pairs[centre] + 2.0 * np.sum(pairs[centre + 1 : centre + 1 + lags] * r[1 : lags + 1])
+    return float(sigma * np.sqrt(max(total, 0.0)))
+
+
+def _gaussian_weights(sigma_bins: float):
+    radius = max(int(np.ceil(4.0 * sigma_bins)), 1)
+    x = np.arange(-radius, radius + 1)
+    weights = np.exp(-0.5 * (x / sigma_bins) ** 2)
+    weights /= weights.sum()
+    return weights, np.convolve(weights, [0.5, 0.0, -0.5])  # the smoothed central difference
+
+
+def with_smoothed_noise(noise: NoiseModel, smoothed, signal_free, smoothing_bins) -> NoiseModel:
+    """The noise model with the σ of the smoothed noise and of its slope.
+
+    Each is measured on the smoothed waveform's signal-free bins (the caller leaves out
+    bins whose smoothing kernel reaches past the window's edge) and computed from the
+    measured σ and autocorrelation; the larger is kept. The direct measurement holds any
+    slow baseline wander, which the truncated autocorrelation misses; the computed one
+    is steady where a short window leaves few independent smoothed values.
+    """
+    smoothed = np.asarray(smoothed, float)
+    free = np.asarray(signal_free, bool)
+    if free.sum() < MIN_NOISE_BINS:
+        raise ValueError(f"only {int(free.sum())} signal-free bins to measure the smoothed noise")
+    _, smoothed_sigma = clipped_mean_sigma(smoothed[free] - noise.mean)
+    slope = np.gradient(smoothed)
+    interior = free & np.roll(free, 1) & np.roll(free, -1)
+    _, slope_sigma = clipped_mean_sigma(slope[interior] if interior.sum() > 2 else slope[free])
+    if smoothing_bins:
+        weights, slope_weights = _gaussian_weights(float(smoothing_bins))
+        r = noise.autocorrelation
+        smoothed_sigma = max(smoothed_sigma, filtered_sigma(noise.sigma, r, weights))
+        slope_sigma = max(slope_sigma, filtered_sigma(noise.sigma, r, slope_weights))
+    return replace(
+        noise,
+        smoothing_bins=float(smoothing_bins or 0.0),
+        smoothed_sigma=smoothed_sigma,
+        slope_sigma=slope_sigma,
+    )
+
+
+def product_noise(mean: float, sigma: float, smoothing_bins: float = 0.0) -> NoiseModel:
+    """A noise model from a product's own noise fields (white noise assumed: the product
+    gives no autocorrelation). Used where the samples hold too few signal-free bins."""
+    if not (np.isfinite(mean) and np.isfinite(sigma) and sigma > 0):
+        raise ValueError("the file supplies no usable noise mean and σ for this shot")
+    width = max(float(smoothing_bins or 0.0), 1.0)
+    return NoiseModel(
+        mean=float(mean),
+        sigma=float(sigma),
+        source="product",
+        smoothing_bins=float(smoothing_bins or 0.0),
+        # white noise through a Gaussian of σ w bins: Σk² = 1/(2√π w), Σk'² = 1/(4√π w³)
+        smoothed_sigma=float(sigma) / np.sqrt(2.0 * np.sqrt(np.pi) * width),
+        slope_sigma=float(sigma) / np.sqrt(4.0 * np.sqrt(np.pi) * width**3),
+        product_mean=float(mean),
+        product_sigma=float(sigma),
+    )

@@ -38,6 +38,10 @@ class Observation:
         Transmit pulse samples in time order (digitiser units, baseline included).
     pulse_ns : float (ns)
         Time between transmit-pulse samples.
+    instrument : str or None
+        Name of the instrument preset that recorded the shot (``"gedi"``, ``"lvis"``,
+        ``"slicer"``; see ``forward.INSTRUMENT_PRESETS``). The readers set it from the file;
+        ``None`` when the file does not say.
     metadata : dict
         Per-shot metadata (``latitude``, ``longitude``, ``beam``, ...).
     truth : dict
@@ -55,6 +59,7 @@ class Observation:
     saturation: float = np.nan
     pulse: np.ndarray | None = None
     pulse_ns: float = np.nan
+    instrument: str | None = None
     metadata: dict = field(default_factory=dict)
     truth: dict = field(default_factory=dict)
 

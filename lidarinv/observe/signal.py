@@ -1,9 +1,21 @@
-"""Signal start and end: where the (optionally smoothed) waveform rises above the floor."""
+"""Signal start and end: where the smoothed waveform rises above the noise floors.
+
+As in the GEDI L2A and LVIS processing (Hofton & Blair 2019, GEDI L2A ATBD), the waveform
+is smoothed, the signal start is the highest bin above a *front* floor and the signal end
+the lowest bin above a higher *back* floor: the trailing edge below the ground return
+carries detector tails and slow baseline wander that a front-floor search would take for
+signal. Both floors are in units of the σ of the smoothed noise, measured on the shot's
+signal-free bins (:mod:`lidarinv.observe.noise`).
+"""
 
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
+
+#: Half-width of the smoothing kernel, in kernel σ, beyond which the window edge is
+#: considered not to affect a smoothed sample.
+EDGE_KERNEL_SIGMAS = 3.0
 
 
 @dataclass(frozen=True)
@@ -15,9 +27,10 @@ class SignalExtent:
     start, end : float (m)
         Axis value of the signal start (top, first in time) and end (bottom).
     start_index, end_index : int
-        Bins of the highest and lowest samples above the floor.
+        Bins of the highest and lowest samples above the floors.
     touches_top, touches_bottom : bool
-        The signal reaches the edge of the window: the return may be truncated there.
+        The signal (above the front floor) reaches the edge of the window: the return may
+        be truncated there.
     """
 
     start: float
@@ -29,24 +42,22 @@ class SignalExtent:
 
 
 def smooth(samples, sigma_bins: float | None):
-    """Gaussian smoothing with σ in bins (``None`` or 0: unchanged copy)."""
+    """Gaussian smoothing with σ in bins (``None`` or 0: unchanged copy).
+
+    The window is extended by reflection; samples within :func:`edge_bins` of an edge
+    still feel that extension and are left out of detection by the callers.
+    """
     samples = np.asarray(samples, float)
     if not sigma_bins:
         return samples.copy()
     if sigma_bins < 0:
         raise ValueError(f"smoothing σ must be ≥ 0 bins, got {sigma_bins}")
-    return gaussian_filter1d(samples, sigma_bins, mode="nearest")
+    return gaussian_filter1d(samples, sigma_bins, mode="reflect")
 
 
-def smoothed_noise_factor(sigma_bins: float | None) -> float:
-    """Factor by which Gaussian smoothing reduces the σ of white noise: √Σk²."""
-    if not sigma_bins:
-        return 1.0
-    radius = int(np.ceil(4 * sigma_bins))
-    impulse = np.zeros(2 * radius + 1)
-    impulse[radius] = 1.0
-    kernel = gaussian_filter1d(impulse, sigma_bins, mode="constant")
-    return float(np.sqrt(np.sum(kernel**2)))
+def edge_bins(sigma_bins: float | None) -> int:
+    """Number of bins at each window edge whose smoothed value depends on the padding."""
+    return int(np.ceil(EDGE_KERNEL_SIGMAS * sigma_bins)) if sigma_bins else 0
 
 
 def above_floor_runs(values, floor: float, min_run: int) -> np.ndarray:
@@ -64,53 +75,66 @@ def above_floor_runs(values, floor: float, min_run: int) -> np.ndarray:
 
 
 def signal_extent(
-    samples,
+    smoothed,
     axis,
-    noise_mean: float,
-    noise_sigma: float,
+    start_floor: float,
+    end_floor: float | None = None,
     *,
-    n_sigma: float = 4.0,
-    smooth_bins: float | None = None,
     min_run: int = 3,
+    edge: int = 0,
+    edge_floor: float | None = None,
     censored=None,
 ) -> SignalExtent | None:
-    """Signal start and end of a waveform, or ``None`` when nothing rises above the floor.
+    """Signal start and end of a smoothed waveform, or ``None`` when nothing is above the
+    front floor.
 
     Parameters
     ----------
-    samples : array of float
-        Waveform (digitiser units), ordered like ``axis``.
+    smoothed : array of float
+        Smoothed waveform (digitiser units), ordered like ``axis``.
     axis : array of float (m)
         Ascending bin-centre heights or elevations.
-    noise_mean, noise_sigma : float
-        Noise of the raw samples (digitiser units).
-    n_sigma : float
-        The floor is ``noise_mean + n_sigma·σ_s``, where σ_s is the noise σ after the
-        smoothing (σ times :func:`smoothed_noise_factor`).
-    smooth_bins : float, optional
-        Gaussian smoothing σ in bins before thresholding.
+    start_floor : float
+        Front floor (digitiser units): the signal start is the highest bin of a run of at
+        least ``min_run`` bins above it.
+    end_floor : float, optional
+        Back floor: the signal end is the lowest bin of a run above it; default
+        ``start_floor``. When nothing reaches the back floor, the front floor is used.
     min_run : int
-        Minimum number of consecutive bins above the floor to count as signal.
+        Minimum number of consecutive bins above a floor to count as signal.
+    edge : int
+        Bins at each window edge left out of the search (see :func:`edge_bins`).
+    edge_floor : float, optional
+        Floor for those edge bins (higher than the front floor: the padding makes their
+        smoothed noise up to √2 larger); a return above it there, or one whose run above
+        the front floor reaches them, touches the edge. Default ``start_floor``.
     censored : array of bool, optional
-        Samples set to a product's floor; they never count as signal (smoothing would
-        otherwise lift a run of floor values above a lower detection floor).
+        Samples set to a product's floor; they never count as signal.
     """
-    samples = np.asarray(samples, float)
+    values = np.asarray(smoothed, float).copy()
     axis = np.asarray(axis, float)
-    floor = noise_mean + n_sigma * noise_sigma * smoothed_noise_factor(smooth_bins)
-    above = smooth(samples, smooth_bins)
+    if values.shape != axis.shape:
+        raise ValueError(f"{values.size} samples but {axis.size} axis values")
     if censored is not None:
-        above = np.where(np.asarray(censored, bool), -np.inf, above)
-    mask = above_floor_runs(above, floor, min_run)
-    hits = np.flatnonzero(mask)
-    if hits.size == 0:
+        values[np.asarray(censored, bool)] = -np.inf
+    edge_floor = start_floor if edge_floor is None else edge_floor
+    bottom_edge = bool(edge) and bool(np.any(values[: edge + 1] > edge_floor))
+    top_edge = bool(edge) and bool(np.any(values[-edge - 1 :] > edge_floor))
+    if edge:
+        values[:edge] = values[-edge:] = -np.inf
+    front = np.flatnonzero(above_floor_runs(values, start_floor, min_run))
+    if front.size == 0:
         return None
-    low, high = int(hits[0]), int(hits[-1])
+    back = np.flatnonzero(
+        above_floor_runs(values, start_floor if end_floor is None else end_floor, min_run)
+    )
+    high = int(front[-1])
+    low = int(back[0]) if back.size else int(front[0])
     return SignalExtent(
         start=float(axis[high]),
         end=float(axis[low]),
         start_index=high,
         end_index=low,
-        touches_top=high == samples.size - 1,
-        touches_bottom=low == 0,
+        touches_top=top_edge or high >= values.size - 1 - edge,
+        touches_bottom=bottom_edge or int(front[0]) <= edge,
     )

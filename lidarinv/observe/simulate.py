@@ -22,6 +22,8 @@ def observe(
     pulse=None,
     pulse_ns: float = np.nan,
     metadata: dict | None = None,
+    noise_filter=None,
+    instrument=None,
 ) -> Observation:
     """Turn a simulated waveform W into an observation (physics conventions)::
 
@@ -57,6 +59,12 @@ def observe(
         censored.
     shot_id, pulse, pulse_ns, metadata
         Passed to the :class:`Observation`.
+    noise_filter : array, optional
+        Impulse response of the digitiser's noise filter: the read noise is white noise
+        convolved with it, rescaled to keep σn, so its autocorrelation is the filter's
+        (R(k) = Σ h_i h_{i+k} / Σ h_i²). Default: white noise.
+    instrument : str or forward.Instrument, optional
+        The instrument (preset name) recorded with the observation.
 
     Returns
     -------
@@ -80,8 +88,13 @@ def observe(
     if not isinstance(rng, np.random.Generator):
         raise ValueError("observe: rng must be a numpy.random.Generator")
     mean_signal = gain * np.clip(signal, 0.0, None)
-    sd = np.sqrt(noise_sigma**2 + shot_factor * mean_signal)
-    y = baseline + mean_signal + sd * rng.standard_normal(signal.size)
+    if noise_filter is None:  # white read noise and shot noise in one draw a bin
+        sd = np.sqrt(noise_sigma**2 + shot_factor * mean_signal)
+        y = baseline + mean_signal + sd * rng.standard_normal(signal.size)
+    else:
+        read_noise = noise_sigma * correlated_normal(signal.size, noise_filter, rng)
+        shot_noise = np.sqrt(shot_factor * mean_signal) * rng.standard_normal(signal.size)
+        y = baseline + mean_signal + read_noise + shot_noise
     step = 1.0 if quantise is True else float(quantise or 0.0)
     if step > 0:
         y = np.round(y / step) * step
@@ -107,6 +120,7 @@ def observe(
         saturation=sat,
         pulse=pulse,
         pulse_ns=pulse_ns,
+        instrument=getattr(instrument, "name", instrument),
         metadata=dict(metadata or {}),
         truth={
             "ground": offset,
@@ -117,3 +131,15 @@ def observe(
             "signal": mean_signal,
         },
     )
+
+
+def correlated_normal(size: int, impulse_response, rng: np.random.Generator) -> np.ndarray:
+    """Unit-variance normal noise with the autocorrelation of a filter's impulse response."""
+    kernel = np.asarray(impulse_response, float)
+    if kernel.ndim != 1 or kernel.size == 0 or not np.all(np.isfinite(kernel)):
+        raise ValueError("observe: the noise filter must be a finite 1-D array")
+    norm = np.sqrt(np.sum(kernel**2))
+    if norm == 0:
+        raise ValueError("observe: the noise filter is all zeros")
+    white = rng.standard_normal(size + kernel.size - 1)
+    return np.convolve(white, kernel / norm, mode="valid")

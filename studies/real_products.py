@@ -1,0 +1,309 @@
+"""Direct metrics of real GEDI and LVIS shots against the NASA products of the same shots.
+
+Runs ``lidarinv.observe.analyse`` with default options on every shot of the GEDI L1B and
+LVIS L1B files and compares ground, RH50, RH98, RH100 and cover with GEDI L2A/L2B and
+LVIS L2: median difference, median and 90th percentile of |difference|, fraction within
+1 m. The GEDI statistics use the L2A quality shots (``quality_flag == 1``). The cover
+comparison is repeated at ρv/ρg = 1 and 2 to show how much of it the assumed ratio
+carries.
+
+    python studies/real_products.py [--data ../shared/data/real] [--tag _NAME]
+
+``--data examples`` runs on the files shipped in ``lidarinv/data``. Writes
+``studies/output/real_products{tag}/`` with ``summary.json``, ``scatter.png`` (metrics
+against the products) and ``waveforms.png`` (example shots with floors, signal extent and
+ground marked).
+"""
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lidarinv.io import (
+    example_file,
+    iter_observations,
+    read_gedi_l2a,
+    read_gedi_l2b,
+    read_lvis_l2,
+)
+from lidarinv.observe import Observation, analyse, processing_settings
+
+HERE = Path(__file__).resolve().parent
+DEFAULT_DATA = HERE.parent.parent / "shared" / "data" / "real"
+QUANTITIES = ("ground", "rh50", "rh98", "rh100", "cover")
+
+
+def _files(data: str):
+    if data == "examples":
+        names = ("gedi-l1b", "gedi-l2a", "gedi-l2b", "lvis-l1b", "lvis-l2")
+        return {name: example_file(name) for name in names}
+    root = Path(data)
+
+    def one(pattern):
+        found = sorted(root.glob(pattern))
+        if len(found) != 1:
+            raise SystemExit(f"expected one {pattern} in {root}, found {len(found)}")
+        return found[0]
+
+    return {
+        "gedi-l1b": one("GEDI01_B_*.h5"),
+        "gedi-l2a": one("GEDI02_A_*.h5"),
+        "gedi-l2b": one("GEDI02_B_*.h5"),
+        "lvis-l1b": one("LVIS1B_*.h5"),
+        "lvis-l2": one("LVIS2_*.txt"),
+    }
+
+
+def differences(pairs) -> dict:
+    """Statistics of ours − product over the shots where both exist."""
+    d = np.array([a - b for a, b in pairs if np.isfinite(a) and np.isfinite(b)])
+    if d.size == 0:
+        return {"n": 0}
+    return {
+        "n": int(d.size),
+        "median": float(np.median(d)),
+        "median_abs": float(np.median(np.abs(d))),
+        "p90_abs": float(np.percentile(np.abs(d), 90)),
+        "max_abs": float(np.max(np.abs(d))),
+        "within_1m": float(np.mean(np.abs(d) <= 1.0)),
+    }
+
+
+def analyse_file(path):
+    """Every shot of a file: (observation or None, analysis or None, error text)."""
+    rows, seconds = [], []
+    for item in iter_observations(path):
+        if not isinstance(item, Observation):
+            rows.append((None, None, f"unreadable: {item.reason}", item.shot_id))
+            continue
+        start = time.perf_counter()
+        try:
+            result = analyse(item)
+            error = ""
+        except Exception as exc:  # the study counts exceptions; none may occur
+            result, error = None, f"exception: {type(exc).__name__}: {exc}"
+        seconds.append(time.perf_counter() - start)
+        rows.append((item, result, error, item.shot_id))
+    return rows, seconds
+
+
+def _status_counts(rows) -> dict:
+    statuses, flags, reasons = {}, {}, {}
+    for _, result, error, _ in rows:
+        status = result.status if result is not None else ("error" if error else "?")
+        statuses[status] = statuses.get(status, 0) + 1
+        if result is not None:
+            for flag in result.flags:
+                flags[flag] = flags.get(flag, 0) + 1
+            if not result.ok:
+                reasons[result.reason] = reasons.get(result.reason, 0) + 1
+        elif error:
+            reasons[error] = reasons.get(error, 0) + 1
+    return {"statuses": statuses, "flags": flags, "reasons": reasons}
+
+
+def gedi_study(files):
+    rows, seconds = analyse_file(files["gedi-l1b"])
+    l2a, l2b = read_gedi_l2a(files["gedi-l2a"]), read_gedi_l2b(files["gedi-l2b"])
+    records = []
+    for obs, result, _, shot in rows:
+        product = l2a.get(shot)
+        if product is None or result is None or not result.ok:
+            continue
+        cover = l2b.get(shot, {})
+        ratio = cover.get("rhov", np.nan) / cover.get("rhog", np.nan)
+        record = {
+            "shot": shot,
+            "quality": product["quality_flag"] == 1,
+            "ours": _ours(result),
+            "product": {
+                "ground": float(product["elev_lowestmode"]),
+                **{f"rh{p}": float(product["rh"][p]) for p in (50, 98, 100)},
+                "cover": float(cover.get("cover", np.nan)),
+            },
+            "cover_at_ratio": {
+                r: analyse(obs, processing_settings("gedi", rho_ratio=r)).cover for r in (1.0, 2.0)
+            },
+            "product_ratio": float(ratio),
+        }
+        records.append(record)
+    quality = [r for r in records if r["quality"]]
+    summary = {
+        "shots": len(rows),
+        "quality_shots": len(quality),
+        **_status_counts(rows),
+        "seconds_per_shot": float(np.median(seconds)),
+        "differences": {
+            q: differences((r["ours"][q], r["product"][q]) for r in quality) for q in QUANTITIES
+        },
+        "cover_ratio": _cover_ratio(quality),
+    }
+    return summary, rows, records
+
+
+def _ours(result) -> dict:
+    return {
+        "ground": float(result.ground),
+        **{f"rh{p}": float(result.rh[p]) for p in (50, 98, 100)},
+        "cover": float(result.cover),
+    }
+
+
+def _cover_ratio(records) -> dict:
+    """How cover moves with the assumed ρv/ρg (GEDI L2B's own ratio is in the file)."""
+    if not records:
+        return {}
+    low = np.array([r["cover_at_ratio"][1.0] for r in records])
+    high = np.array([r["cover_at_ratio"][2.0] for r in records])
+    ours = np.array([r["ours"]["cover"] for r in records])
+    return {
+        "product_ratio_median": float(np.nanmedian([r["product_ratio"] for r in records])),
+        "median_cover_at_1": float(np.median(low)),
+        "median_cover_at_1_5": float(np.median(ours)),
+        "median_cover_at_2": float(np.median(high)),
+        "median_change_per_unit_ratio": float(np.median(high - low)),
+    }
+
+
+def lvis_study(files):
+    rows, seconds = analyse_file(files["lvis-l1b"])
+    l2 = read_lvis_l2(files["lvis-l2"])
+    records = []
+    for _, result, _, shot in rows:
+        product = l2.get(shot)
+        if product is None or result is None or not result.ok:
+            continue
+        ours = _ours(result)
+        ours.pop("cover")
+        records.append(
+            {
+                "shot": shot,
+                "ours": ours,
+                "product": {
+                    "ground": float(product["zg"]),
+                    **{f"rh{p}": float(product["rh"][p]) for p in (50, 98, 100)},
+                },
+            }
+        )
+    summary = {
+        "shots": len(rows),
+        "shots_in_l2": len(records),
+        **_status_counts(rows),
+        "seconds_per_shot": float(np.median(seconds)),
+        "differences": {
+            q: differences((r["ours"][q], r["product"][q]) for r in records)
+            for q in QUANTITIES[:-1]
+        },
+    }
+    return summary, rows, records
+
+
+def scatter_figure(gedi_records, lvis_records, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 4, figsize=(15, 7.5))
+    panels = (("ground", "ground − product (m)"), ("rh50", "RH50 (m)"), ("rh98", "RH98 (m)"))
+    for row, (name, records) in enumerate((("GEDI", gedi_records), ("LVIS", lvis_records))):
+        for col, (q, label) in enumerate(panels):
+            ax = axes[row, col]
+            ours = np.array([r["ours"][q] for r in records])
+            theirs = np.array([r["product"][q] for r in records])
+            if q == "ground":
+                ax.hist(ours - theirs, bins=np.linspace(-1.5, 1.5, 31), color="0.4")
+                ax.set_xlabel(f"{name}: lidarinv ground − product ground (m)")
+                ax.set_ylabel("shots")
+                continue
+            ax.plot(theirs, ours, ".", ms=4)
+            lim = [np.nanmin([ours, theirs]) - 1, np.nanmax([ours, theirs]) + 1]
+            ax.plot(lim, lim, "k-", lw=0.6)
+            ax.set_xlabel(f"{name} product {label}")
+            ax.set_ylabel(f"lidarinv {label}")
+        ax = axes[row, 3]
+        if name == "GEDI":
+            ours = [r["ours"]["cover"] for r in records]
+            ax.plot([r["product"]["cover"] for r in records], ours, ".", ms=4)
+            ax.plot([0, 1], [0, 1], "k-", lw=0.6)
+            ax.set_xlabel("GEDI L2B cover")
+            ax.set_ylabel("lidarinv cover (ρv/ρg = 1.5)")
+        else:
+            ax.axis("off")
+    fig.suptitle("lidarinv direct metrics against the NASA products (quality shots)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def waveform_figure(examples, path):
+    """Typical, worst and multi-mode shots of each instrument, marks and product ground."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lidarinv.observe.figures import plot_analysis
+
+    fig, axes = plt.subplots(1, len(examples), figsize=(3.4 * len(examples), 6.5), squeeze=False)
+    for ax, (label, obs, result, product_ground) in zip(axes[0], examples):
+        plot_analysis(ax, obs, result, product_ground, title=f"{label}\nshot {obs.shot_id}")
+    axes[0, 0].legend(fontsize=6, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def pick_examples(instrument, rows, records):
+    """Typical (median |ground difference|), worst, and the shot with most modes."""
+    by_shot = {shot: (obs, result) for obs, result, _, shot in rows if result is not None}
+    scored = sorted(records, key=lambda r: abs(r["ours"]["ground"] - r["product"]["ground"]))
+    if not scored:
+        return []
+    chosen = {"typical": scored[len(scored) // 2], "worst": scored[-1]}
+    chosen["most modes"] = max(records, key=lambda r: by_shot[r["shot"]][1].n_modes)
+    out = []
+    for label, record in chosen.items():
+        obs, result = by_shot[record["shot"]]
+        out.append((f"{instrument} {label}", obs, result, record["product"]["ground"]))
+    return out
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", default=str(DEFAULT_DATA), help="folder, or 'examples'")
+    parser.add_argument("--tag", default="", help="suffix of the output folder")
+    args = parser.parse_args(argv)
+    files = _files(args.data)
+    out = HERE / "output" / f"real_products{args.tag}"
+    out.mkdir(parents=True, exist_ok=True)
+    gedi, gedi_rows, gedi_records = gedi_study(files)
+    lvis, lvis_rows, lvis_records = lvis_study(files)
+    summary = {
+        "data": {k: str(v) for k, v in files.items()},
+        "settings": {"gedi": "processing_settings('gedi')", "lvis": "processing_settings('lvis')"},
+        "gedi": gedi,
+        "lvis": lvis,
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
+    quality = [r for r in gedi_records if r["quality"]]
+    scatter_figure(quality, lvis_records, out / "scatter.png")
+    examples = pick_examples("GEDI", gedi_rows, quality)
+    examples += pick_examples("LVIS", lvis_rows, lvis_records)
+    waveform_figure(examples, out / "waveforms.png")
+    for name, part in (("GEDI", gedi), ("LVIS", lvis)):
+        print(f"{name}: {part['shots']} shots, statuses {part['statuses']}, flags {part['flags']}")
+        for q, d in part["differences"].items():
+            if d["n"]:
+                print(f"  {q:7s} n={d['n']:3d} median {d['median']:+.3f}  |d| median "
+                      f"{d['median_abs']:.3f}  p90 {d['p90_abs']:.3f}  within 1 m "
+                      f"{d['within_1m']:.3f}")  # fmt: skip
+    print(f"cover against ρv/ρg: {gedi['cover_ratio']}")
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
