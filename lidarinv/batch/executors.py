@@ -20,6 +20,7 @@ A user-supplied executor is used as it is: its workers keep their thread setting
 import concurrent.futures as cf
 import multiprocessing
 import os
+import signal
 import socket
 import time
 import traceback
@@ -52,6 +53,10 @@ class TaskOutcome:
         Short form of the exception (type, message, innermost frame); empty on success.
     traceback : str
         Full traceback text; empty on success.
+    transient : bool
+        Whether the error came from the environment (:data:`TRANSIENT_ERRORS`), so that
+        another attempt may succeed; any other error repeats, since a shot's inversion
+        is a function of its observation, settings and seed alone.
     """
 
     result: object
@@ -59,6 +64,18 @@ class TaskOutcome:
     worker: str
     reason: str = ""
     traceback: str = ""
+    transient: bool = False
+
+
+#: Errors of the environment (files, memory, network) that another attempt may not meet.
+#: Every other exception of an inversion is certain to repeat: a retry reruns the same
+#: computation on the same observation with the same seed.
+TRANSIENT_ERRORS = (OSError, MemoryError, TimeoutError)
+
+
+def is_transient(error: BaseException) -> bool:
+    """Whether another attempt after ``error`` may succeed (see :data:`TRANSIENT_ERRORS`)."""
+    return isinstance(error, TRANSIENT_ERRORS)
 
 
 def short_reason(error: BaseException) -> str:
@@ -91,7 +108,7 @@ def run_task(invert, observation, settings, seed) -> TaskOutcome:
         result = invert(observation, settings, rng=np.random.default_rng(seed), progress=False)
     except Exception as error:
         return TaskOutcome(None, time.perf_counter() - start, worker, short_reason(error),
-                           traceback.format_exc())  # fmt: skip
+                           traceback.format_exc(), is_transient(error))  # fmt: skip
     return TaskOutcome(result, time.perf_counter() - start, worker)
 
 
@@ -99,7 +116,9 @@ _SHARED = {}
 
 
 def _init_worker(invert, settings) -> None:
-    """Process-pool initializer: one thread per library, shared data stored once."""
+    """Process-pool initializer: one thread per library, shared data stored once; Ctrl-C
+    is left to the coordinator, which stops the workers (no traceback from each)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.update(THREAD_ENV)
     _SHARED["invert"], _SHARED["settings"] = invert, settings
 
@@ -185,7 +204,17 @@ class ProcessBackend:
         return cf.wait(futures, return_when=cf.FIRST_COMPLETED).done
 
     def close(self, cancel: bool = False) -> None:
-        self._pool.shutdown(wait=True, cancel_futures=cancel)
+        """Shut the pool down; with ``cancel`` (an error or an interruption on the
+        coordinator) the shots in flight are abandoned and the workers ended at once."""
+        if cancel:
+            processes = list((getattr(self._pool, "_processes", None) or {}).values())
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            for process in processes:
+                process.terminate()
+            for process in processes:
+                process.join(timeout=5)
+            return
+        self._pool.shutdown(wait=True)
 
 
 class ExecutorBackend:

@@ -2,6 +2,10 @@
 
 Each subcommand module defines ``HELP`` (one line), ``add_arguments(parser)`` and
 ``run(args) -> int``. Modules are imported only when their command runs.
+
+Exit status: 0 on success, 1 when some shots failed, 2 for a usage or input error (the
+message names the file or option), 130 when interrupted (Ctrl-C), which prints one line
+and leaves no partially written file (:mod:`lidarinv.cli.outputs`).
 """
 
 import argparse
@@ -42,6 +46,9 @@ def main(argv=None) -> int:
     except (ValueError, OSError) as error:
         print(f"lidarinv {args.command}: error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"\nlidarinv {args.command}: interrupted; no partial output kept", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":
