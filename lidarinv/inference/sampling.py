@@ -349,13 +349,14 @@ def initial_ball(log_prob, modes, ball, n_walkers, rng):
     return walkers
 
 
-def _show_target(bar, iteration, discard, tau, s) -> None:
+def _show_target(bar, next_check, discard, tau, s) -> None:
     """Count the bar towards the steps convergence needs by the latest τ (burn-in plus
-    ``tau_multiple`` τ), within the step cap, rather than towards the cap itself."""
+    ``tau_multiple`` τ, at least the next check), within the step cap, rather than
+    towards the cap itself."""
     if bar.disable or not np.all(np.isfinite(tau)):
         return
     needed = discard + s.tau_multiple * float(np.max(tau))
-    bar.total = int(min(s.max_steps, max(needed, iteration + 1)))
+    bar.total = int(min(s.max_steps, max(needed, next_check)))
     bar.refresh()
 
 
@@ -469,7 +470,7 @@ def run_sampler(
             converged = True
             break
         next_check = _following_check(sampler.iteration, s)
-        _show_target(bar, sampler.iteration, discard, tau, s)
+        _show_target(bar, next_check, discard, tau, s)
     if converged:  # the bar ends full, not at a fraction of the step cap
         bar.total = sampler.iteration
         bar.set_postfix_str(f"converged, τ {np.max(tau):.0f}", refresh=False)
