@@ -22,7 +22,7 @@ def tiny_result(shot_id="gedi-mixed", seed=0):
         samples=samples,
         log_prob=rng.normal(size=200),
         derived={"rh98": rng.normal(15, 1, 200), "footprint_top_height": rng.normal(18, 1, 200)},
-        fixed={},
+        fixed={"crown_radius_slope": 0.1, "rho_ratio": None},
         diagnostics={
             "tau": np.ones(3),
             "acceptance": np.full(4, 0.3),
