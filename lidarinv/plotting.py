@@ -5,6 +5,8 @@ import re
 
 import numpy as np
 
+__all__ = ["QUANTITY_NAMES", "plot_waveforms", "quantity_label", "unit_label"]
+
 _SUPERSCRIPTS = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 #: Names printed for quantities in figures (others: the name with spaces).
