@@ -282,3 +282,38 @@ def test_progress_bar_ends_full_and_says_converged_before_the_step_cap(capsys):
     final = capsys.readouterr().err.replace("\r", "\n").strip().splitlines()[-1]
     assert "100%" in final and "converged" in final
     assert f"{run.chain.shape[0]}/{run.chain.shape[0]}" in final
+
+
+def test_a_real_sigint_inside_a_kernel_still_ends_in_one_line(tmp_path, capsys, monkeypatch):
+    """Ctrl-C lands where it lands: here inside a 'kernel' that, like numba, turns the
+    KeyboardInterrupt into a SystemError, under a caller that, like emcee, prints the
+    parameters and a traceback on its way out."""
+    import signal
+    import sys
+    import traceback
+
+    def kernel_then_noise(*args, **kwargs):
+        try:
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                for _ in range(1000):  # the signal arrives here
+                    sum(range(1000))
+            except KeyboardInterrupt as error:
+                raise SystemError("returned a result with an exception set") from error
+        except SystemError:
+            print("emcee: Exception while calling your likelihood function:")
+            print("  params:", np.zeros((4, 12)))
+            traceback.print_exc(file=sys.stderr)
+            raise
+
+    monkeypatch.setattr(lidarinv.inference, "invert_shot", kernel_then_noise)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    out = tmp_path / "post.h5"
+    assert main([*INVERT_EXAMPLE, "-o", str(out)]) == 130
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.strip().splitlines() == [
+        "lidarinv invert: interrupted; no partial output kept"
+    ]
+    assert not out.exists()
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # handler restored

@@ -119,11 +119,15 @@ def _coverage_figure(quantities, ranges, path: Path) -> str:
         ax.plot(x, values, "o", color=colour, label=f"{level} % intervals")
         if level in ranges:
             ax.axhspan(*ranges[level], color=colour, alpha=0.15, lw=0)
+        ax.axhline(int(level) / 100, color=colour, ls="--", lw=0.8)
     ax.set_xticks(
         range(len(names)), [n.replace("_", " ") for n in names], rotation=30, ha="right", fontsize=8
     )
     ax.set_ylabel("coverage (fraction of shots)")
-    ax.set_title("coverage of the credible intervals; bands: binomial 95 % ranges", fontsize=9)
+    ax.set_title(
+        "coverage of the credible intervals; dashed: nominal; bands: binomial 95 % ranges",
+        fontsize=9,
+    )
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

@@ -22,6 +22,7 @@ import multiprocessing
 import os
 import signal
 import socket
+import threading
 import time
 import traceback
 import warnings
@@ -120,6 +121,11 @@ def _init_worker(invert, settings) -> None:
     is left to the coordinator, which stops the workers (no traceback from each)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.update(THREAD_ENV)
+    # tqdm would create a multiprocessing lock here, which a worker ended by Ctrl-C
+    # could not release (a "leaked semaphore" warning); the workers draw no bars
+    from tqdm import tqdm
+
+    tqdm.set_lock(threading.RLock())
     _SHARED["invert"], _SHARED["settings"] = invert, settings
 
 
@@ -208,13 +214,12 @@ class ProcessBackend:
         coordinator) the shots in flight are abandoned and the workers ended at once."""
         if cancel:
             processes = list((getattr(self._pool, "_processes", None) or {}).values())
-            self._pool.shutdown(wait=False, cancel_futures=True)
             for process in processes:
                 process.terminate()
             for process in processes:
                 process.join(timeout=5)
-            return
-        self._pool.shutdown(wait=True)
+        # after the workers ended, the pool sees them gone and releases its queues
+        self._pool.shutdown(wait=True, cancel_futures=cancel)
 
 
 class ExecutorBackend:

@@ -1,13 +1,13 @@
 """``lidarinv batch``: invert every shot of a waveform file into one resumable HDF5 file."""
 
 import importlib
-import sys
 from pathlib import Path
 
 import h5py
 
 from lidarinv.io.formats import FORMATS, detect_format, iter_observations
 
+from . import Interrupted, interrupted
 from .options import add_inversion_options, inversion_settings, positive_int
 from .outputs import check_folder_writable
 
@@ -161,17 +161,18 @@ def run(args) -> int:
             max_shots=args.max_shots,
             total=_count(args.file, args.format, args.beam, args.shot),
         )
-    except KeyboardInterrupt:
+    except BaseException as error:
+        if not interrupted(error):
+            raise
         kept = _stored_shots(args.output)
         if not existed and kept == 0:  # nothing finished: leave no file behind
             args.output.unlink(missing_ok=True)
             csv_path_for(args.output).unlink(missing_ok=True)
-            print("\nlidarinv batch: interrupted; no shot finished, no file written",
-                  file=sys.stderr)  # fmt: skip
-        else:
-            print(f"\nlidarinv batch: interrupted; {kept} finished shot(s) kept in "
-                  f"{args.output}, rerun the command to continue", file=sys.stderr)  # fmt: skip
-        return 130
+            raise Interrupted("interrupted; no shot finished, no file written") from None
+        raise Interrupted(
+            f"interrupted; {kept} finished shot(s) kept in {args.output}, rerun the "
+            "command to continue"
+        ) from None
     finally:
         if client is not None:
             client.close()
