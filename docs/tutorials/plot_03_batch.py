@@ -38,14 +38,20 @@ write_observations(folder / "shots.h5", shots)
 # Each shot's seed derives from ``rng`` and its id, so the results do not depend on the
 # scheduling.
 settings = InversionSettings(sampler=SamplerSettings(max_steps=600))
-summary = invert_many(
-    iter_observations(folder / "shots.h5"),
-    settings,
-    output=folder / "results.h5",
-    workers=1,
-    rng=1,
-    progress=False,
-)
+
+
+def run_batch():
+    return invert_many(
+        iter_observations(folder / "shots.h5"),
+        settings,
+        output=folder / "results.h5",
+        workers=1,
+        rng=1,
+        progress=False,
+    )
+
+
+summary = run_batch()
 print(summary)
 
 # %%
@@ -75,13 +81,4 @@ print(result.summary_table().splitlines()[-2])
 # Resuming
 # --------
 # Run the same call again: every shot is found in the file and skipped.
-print(
-    invert_many(
-        iter_observations(folder / "shots.h5"),
-        settings,
-        output=folder / "results.h5",
-        workers=1,
-        rng=1,
-        progress=False,
-    )
-)
+print(run_batch())

@@ -21,31 +21,23 @@ from forward import StandParams
 from lidarinv.inference import InversionSettings, SamplerSettings, invert_shot
 from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot
 
+
+def stand(density, mean_height, height_sd, shapes):
+    """A single-cohort stand with truncated-normal heights (the inversion's family)."""
+    return StandParams(
+        density=density,
+        height_mean=mean_height,
+        height_sd=height_sd,
+        height_family="truncnorm",
+        height_truncation=2.0,
+        shape_mix=shapes,
+    )
+
+
 stands = [
-    StandParams(
-        density=300,
-        height_mean=12,
-        height_sd=2,
-        height_family="truncnorm",
-        height_truncation=2.0,
-        shape_mix={"cone": 1.0},
-    ),
-    StandParams(
-        density=600,
-        height_mean=18,
-        height_sd=3,
-        height_family="truncnorm",
-        height_truncation=2.0,
-        shape_mix={"cone": 0.5, "ellipsoid": 0.5},
-    ),
-    StandParams(
-        density=900,
-        height_mean=24,
-        height_sd=4,
-        height_family="truncnorm",
-        height_truncation=2.0,
-        shape_mix={"ellipsoid": 1.0},
-    ),
+    stand(300, 12, 2, {"cone": 1.0}),
+    stand(600, 18, 3, {"cone": 0.5, "ellipsoid": 0.5}),
+    stand(900, 24, 4, {"ellipsoid": 1.0}),
 ]
 rng = np.random.default_rng(11)
 shots = [synthetic_shot(ShotRecipe(p), rng, shot_id=i) for i, p in enumerate(stands)]
