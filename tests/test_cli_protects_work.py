@@ -307,13 +307,18 @@ def test_a_real_sigint_inside_a_kernel_still_ends_in_one_line(tmp_path, capsys, 
             raise
 
     monkeypatch.setattr(lidarinv.inference, "invert_shot", kernel_then_noise)
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    # as in a terminal (a process started in the background inherits SIGINT ignored)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     out = tmp_path / "post.h5"
-    assert main([*INVERT_EXAMPLE, "-o", str(out)]) == 130
+    try:
+        code = main([*INVERT_EXAMPLE, "-o", str(out)])
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert code == 130
     captured = capsys.readouterr()
     assert captured.out == ""
     assert captured.err.strip().splitlines() == [
         "lidarinv invert: interrupted; no partial output kept"
     ]
     assert not out.exists()
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # handler restored
