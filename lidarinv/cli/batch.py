@@ -24,7 +24,9 @@ def add_arguments(parser) -> None:
         "--shot", action="append", metavar="ID", help="invert only this shot id (repeatable)"
     )
     where = parser.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
+    where.add_argument(
+        "--workers", type=positive_int, help="local worker processes (default: all cores)"
+    )
     where.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://h:8786")
     add_inversion_options(parser)
     parser.add_argument(
@@ -109,12 +111,11 @@ class _Selected:
         return sorted(text for name, text in self.wanted.items() if name not in self.found)
 
 
-def _check_output(args) -> bool:
-    """The results file can be written; with ``--overwrite`` an existing one (and its
-    CSV) is removed. Returns whether the file existed before this run."""
+def _start_afresh(args) -> bool:
+    """With ``--overwrite``, remove an existing results file and its CSV (just before
+    the run starts). Returns whether a results file is there to resume."""
     from lidarinv.batch import csv_path_for
 
-    check_folder_writable(args.output, "results file")
     if args.output.exists() and args.overwrite:
         args.output.unlink()
         csv_path_for(args.output).unlink(missing_ok=True)
@@ -136,7 +137,7 @@ def run(args) -> int:
         raise ValueError(f"no such file: {args.file}")
     settings = _settings(args)
     invert = _invert_function(args.invert)
-    existed = _check_output(args)
+    check_folder_writable(args.output, "results file")
     items = iter_observations(args.file, args.format, beams=args.beam)
     selected = None
     if args.shot:
@@ -147,7 +148,9 @@ def run(args) -> int:
             client = connect_dask(args.scheduler)
         except ImportError as error:
             raise ValueError(str(error)) from error
+    existed = True  # until known: an interruption then removes nothing
     try:
+        existed = _start_afresh(args)
         summary = invert_many(
             items,
             settings,

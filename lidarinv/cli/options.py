@@ -37,7 +37,8 @@ def add_inversion_options(parser) -> None:
     parser.add_argument(
         "--instrument",
         choices=sorted(INSTRUMENT_PRESETS),
-        help="instrument preset for the pulse and footprint (default gedi)",
+        help="instrument preset for the pulse and footprint (default: the one the file "
+        "names, else gedi)",
     )
     parser.add_argument(
         "--max-steps", type=positive_int, metavar="N", help="cap on sampler steps (default 20000)"
