@@ -56,7 +56,8 @@ def test_process_pool_batch_writes_every_shot_and_matches_threads(tmp_path):
     rows = _csv(summary.csv)
     assert [r["shot_id"] for r in rows] == [str(i) for i in range(8)]  # one row per shot
     status = {r["shot_id"]: (r["status"], r["attempts"]) for r in rows}
-    assert status["5"] == ("failed", "2") and status["2"] == ("failed", "0")
+    # a ValueError (the shot's data) would repeat with the same seed: one attempt only
+    assert status["5"] == ("failed", "1") and status["2"] == ("failed", "0")
     assert status["0"] == ("done", "1")
     with h5py.File(out, "r") as handle:
         assert sorted(handle["shots"]) == ["0", "1", "3", "4", "6", "7"]
@@ -128,13 +129,23 @@ def test_max_shots_then_rerun_completes(tmp_path):
 
 def test_failing_shot_is_retried_then_recorded(tmp_path):
     obs = _observations(6)
-    settings = FakeSettings(fail=frozenset({"1", "4"}), once_dir=str(tmp_path))
+    # an error of the environment (OSError) is retried
+    settings = FakeSettings(fail=frozenset({"1", "4"}), fail_with="OSError", once_dir=str(tmp_path))
     with ThreadPoolExecutor(2) as pool:
         summary = invert_many(obs, settings, output=tmp_path / "r.h5", executor=pool,
                               invert=fake_invert, progress=False)  # fmt: skip
     assert summary.n_done == 6  # each failed once, then succeeded on its retry
     attempts = {r["shot_id"]: r["attempts"] for r in _csv(summary.csv)}
     assert attempts["1"] == attempts["4"] == "2" and attempts["0"] == "1"
+
+    # an error of the shot's data would repeat (same shot, same seed): not retried
+    data = FakeSettings(fail=frozenset({"1"}), once_dir=str(tmp_path / "data"))
+    (tmp_path / "data").mkdir()
+    with ThreadPoolExecutor(2) as pool:
+        summary = invert_many(obs, data, output=tmp_path / "v.h5", executor=pool,
+                              invert=fake_invert, retries=3, progress=False)  # fmt: skip
+    assert summary.n_done == 5 and list(summary.failed) == ["1"]
+    assert {r["shot_id"]: r["attempts"] for r in _csv(summary.csv)}["1"] == "1"
 
     always = FakeSettings(fail=frozenset({"4"}))
     with ThreadPoolExecutor(2) as pool:

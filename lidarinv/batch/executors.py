@@ -20,7 +20,9 @@ A user-supplied executor is used as it is: its workers keep their thread setting
 import concurrent.futures as cf
 import multiprocessing
 import os
+import signal
 import socket
+import threading
 import time
 import traceback
 import warnings
@@ -52,6 +54,10 @@ class TaskOutcome:
         Short form of the exception (type, message, innermost frame); empty on success.
     traceback : str
         Full traceback text; empty on success.
+    transient : bool
+        Whether the error came from the environment (:data:`TRANSIENT_ERRORS`), so that
+        another attempt may succeed; any other error repeats, since a shot's inversion
+        is a function of its observation, settings and seed alone.
     """
 
     result: object
@@ -59,6 +65,18 @@ class TaskOutcome:
     worker: str
     reason: str = ""
     traceback: str = ""
+    transient: bool = False
+
+
+#: Errors of the environment (files, memory, network) that another attempt may not meet.
+#: Every other exception of an inversion is certain to repeat: a retry reruns the same
+#: computation on the same observation with the same seed.
+TRANSIENT_ERRORS = (OSError, MemoryError, TimeoutError)
+
+
+def is_transient(error: BaseException) -> bool:
+    """Whether another attempt after ``error`` may succeed (see :data:`TRANSIENT_ERRORS`)."""
+    return isinstance(error, TRANSIENT_ERRORS)
 
 
 def short_reason(error: BaseException) -> str:
@@ -91,7 +109,7 @@ def run_task(invert, observation, settings, seed) -> TaskOutcome:
         result = invert(observation, settings, rng=np.random.default_rng(seed), progress=False)
     except Exception as error:
         return TaskOutcome(None, time.perf_counter() - start, worker, short_reason(error),
-                           traceback.format_exc())  # fmt: skip
+                           traceback.format_exc(), is_transient(error))  # fmt: skip
     return TaskOutcome(result, time.perf_counter() - start, worker)
 
 
@@ -99,8 +117,15 @@ _SHARED = {}
 
 
 def _init_worker(invert, settings) -> None:
-    """Process-pool initializer: one thread per library, shared data stored once."""
+    """Process-pool initializer: one thread per library, shared data stored once; Ctrl-C
+    is left to the coordinator, which stops the workers (no traceback from each)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.update(THREAD_ENV)
+    # tqdm would create a multiprocessing lock here, which a worker ended by Ctrl-C
+    # could not release (a "leaked semaphore" warning); the workers draw no bars
+    from tqdm import tqdm
+
+    tqdm.set_lock(threading.RLock())
     _SHARED["invert"], _SHARED["settings"] = invert, settings
 
 
@@ -185,6 +210,15 @@ class ProcessBackend:
         return cf.wait(futures, return_when=cf.FIRST_COMPLETED).done
 
     def close(self, cancel: bool = False) -> None:
+        """Shut the pool down; with ``cancel`` (an error or an interruption on the
+        coordinator) the shots in flight are abandoned and the workers ended at once."""
+        if cancel:
+            processes = list((getattr(self._pool, "_processes", None) or {}).values())
+            for process in processes:
+                process.terminate()
+            for process in processes:
+                process.join(timeout=5)
+        # after the workers ended, the pool sees them gone and releases its queues
         self._pool.shutdown(wait=True, cancel_futures=cancel)
 
 

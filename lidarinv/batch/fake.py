@@ -20,6 +20,9 @@ import numpy as np
 
 from lidarinv.observe.observation import Observation, ShotError
 
+#: Exceptions :class:`FakeSettings` can make a shot raise, by name.
+FAKE_ERRORS = {"ValueError": ValueError, "OSError": OSError, "MemoryError": MemoryError}
+
 
 @dataclass(frozen=True)
 class FakeSettings:
@@ -30,7 +33,11 @@ class FakeSettings:
     delay : float (s)
         Time each shot takes (``time.sleep``).
     fail : frozenset of str
-        Shot ids (as strings) whose inversion raises ``ValueError``.
+        Shot ids (as strings) whose inversion raises ``fail_with``.
+    fail_with : str
+        The exception those shots raise, a name of :data:`FAKE_ERRORS`: ``ValueError``
+        stands for an error of the shot's data (not retried), ``OSError`` for one of
+        the environment (retried).
     crash : frozenset of str
         Shot ids whose inversion ends its process at once with ``os._exit``.
     once_dir : str, optional
@@ -45,6 +52,7 @@ class FakeSettings:
 
     delay: float = 0.0
     fail: frozenset = frozenset()
+    fail_with: str = "ValueError"
     crash: frozenset = frozenset()
     once_dir: str | None = None
     n_samples: int = 64
@@ -140,8 +148,8 @@ def fake_invert(observation, settings=None, *, rng=None, progress=False) -> Fake
 
     Raises
     ------
-    ValueError
-        For shots listed in ``settings.fail``.
+    ValueError or OSError
+        For shots listed in ``settings.fail`` (``settings.fail_with``).
     """
     settings = FakeSettings() if settings is None else settings
     rng = np.random.default_rng(0) if rng is None else rng
@@ -149,7 +157,7 @@ def fake_invert(observation, settings=None, *, rng=None, progress=False) -> Fake
     if key in settings.crash and _first_attempt(settings, f"crash-{key}"):
         os._exit(3)
     if key in settings.fail and _first_attempt(settings, f"fail-{key}"):
-        raise ValueError(f"shot {key}: fake failure")
+        raise FAKE_ERRORS[settings.fail_with](f"shot {key}: fake failure")
     if settings.delay > 0:
         time.sleep(settings.delay)
     samples = np.asarray(observation.samples, float)

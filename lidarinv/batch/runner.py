@@ -11,7 +11,7 @@ import numpy as np
 
 from lidarinv.observe.observation import ShotError
 
-from .executors import make_backend, short_reason
+from .executors import is_transient, make_backend, short_reason
 from .progress import ProgressBar
 from .store import ResultStore, group_name
 
@@ -225,8 +225,12 @@ def invert_many(
     progress : bool
         Show a tqdm progress bar (shots/s, ETA, done/failed/skipped counts).
     retries : int
-        Further attempts after a shot raises or its worker process dies; then it is
-        recorded as failed (reason: the exception's short form) and the batch goes on.
+        Further attempts after a shot meets an error of its environment (an ``OSError``,
+        ``MemoryError`` or ``TimeoutError``: :data:`.executors.TRANSIENT_ERRORS`) or its
+        worker process dies; then it is recorded as failed (reason: the exception's
+        short form) and the batch goes on. Any other error is recorded at once: a
+        shot's inversion depends only on its observation, the settings and its seed, so
+        it would fail again (e.g. a ground outside the window).
         When a local worker dies the pool is rebuilt and the shots that were in flight
         run again one at a time, so the shot that killed it is identified and the others
         are not charged. On Dask the scheduler reruns the tasks of a lost worker itself
@@ -331,7 +335,7 @@ def _run(source, backend, store, summary, bar, retries) -> None:
                     source.in_flight.discard(group_name(task.shot_id))
                     summary.n_done += 1
                     bar.advance("done")
-                elif task.attempts <= retries:
+                elif outcome.transient and task.attempts <= retries:
                     retry.append(task)
                 else:
                     fail(task, outcome.reason, outcome.traceback)
@@ -347,7 +351,7 @@ def _run(source, backend, store, summary, bar, retries) -> None:
                     fail(task, f"worker process died ({type(error).__name__})")
             elif crash == "lost":
                 fail(task, f"worker lost ({type(error).__name__}: {str(error).split(',')[0]})")
-            elif task.attempts <= retries:
+            elif is_transient(error) and task.attempts <= retries:
                 retry.append(task)
             else:
                 fail(task, f"{type(error).__name__}: {error}")

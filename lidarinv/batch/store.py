@@ -108,8 +108,8 @@ class ResultStore:
             raise ValueError(f"{self.path}: unsupported layout version {attrs['layout_version']}")
         if str(attrs["settings"]) != settings_text:
             raise ValueError(
-                f"{self.path} holds results of other inversion settings; "
-                "write to a new file or delete it"
+                f"{self.path} holds results of other inversion settings; write to a new "
+                "file, or start afresh (lidarinv batch --overwrite)"
             )
         if str(attrs.get("inversion", "")) != inversion:
             raise ValueError(

@@ -7,6 +7,10 @@ import h5py
 
 from lidarinv.io.formats import FORMATS, detect_format, iter_observations
 
+from . import Interrupted, interrupted
+from .options import add_inversion_options, inversion_settings, positive_int
+from .outputs import check_folder_writable
+
 HELP = "invert many shots in parallel (local processes or a Dask cluster) into one HDF5 file"
 
 
@@ -20,15 +24,23 @@ def add_arguments(parser) -> None:
         "--shot", action="append", metavar="ID", help="invert only this shot id (repeatable)"
     )
     where = parser.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
+    where.add_argument(
+        "--workers", type=positive_int, help="local worker processes (default: all cores)"
+    )
     where.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://h:8786")
-    parser.add_argument("--priors", type=Path, help="priors file (InversionSettings)")
+    add_inversion_options(parser)
     parser.add_argument(
         "-o", "--output", type=Path, required=True, help="results file (HDF5; resumed if present)"
     )
-    parser.add_argument("--max-shots", type=int, help="stop after this many new shots")
+    parser.add_argument("--max-shots", type=positive_int, help="stop after this many new shots")
     parser.add_argument("--seed", type=int, help="root seed of the per-shot random generators")
-    parser.add_argument("--retries", type=int, default=1, help="retries of a failed shot")
+    parser.add_argument(
+        "--retries",
+        type=int,
+        default=1,
+        help="retries of a shot whose worker died or met an error of its environment "
+        "(errors of the shot's data repeat and are not retried)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument(
         "--invert",
@@ -37,18 +49,16 @@ def add_arguments(parser) -> None:
     )
 
 
-def _settings(priors):
-    if priors is None:
+def _settings(args):
+    """Inversion settings from the options; None (the inversion's defaults) when none of
+    them is given, so that a results file written without options resumes as before."""
+    given = (args.priors, args.instrument, args.max_steps, args.walkers)
+    if all(value is None for value in given):
         return None
     try:
-        from lidarinv.inference import InversionSettings
+        return inversion_settings(args)
     except ImportError as error:
-        raise ValueError(f"--priors needs lidarinv.inference (not available: {error})") from error
-    if not hasattr(InversionSettings, "from_priors_file"):
-        raise ValueError("--priors: InversionSettings.from_priors_file is not available")
-    if not priors.exists():
-        raise ValueError(f"no such priors file: {priors}")
-    return InversionSettings.from_priors_file(priors)
+        raise ValueError(f"inversion options need lidarinv.inference ({error})") from error
 
 
 def _invert_function(spec):
@@ -79,32 +89,68 @@ def _count(path, format, beams, shot_ids):
         return None
 
 
-def _selected(items, shot_ids):
-    from lidarinv.batch import group_name
+class _Selected:
+    """The shots whose ids were asked for; remembers those it met."""
 
-    wanted = {group_name(s) for s in shot_ids}
-    for item in items:
-        if group_name(item.shot_id) in wanted:
-            yield item
+    def __init__(self, items, shot_ids):
+        from lidarinv.batch import group_name
+
+        self._items, self._name = items, group_name
+        self.wanted = {group_name(s): str(s) for s in shot_ids}
+        self.found = set()
+
+    def __iter__(self):
+        for item in self._items:
+            name = self._name(item.shot_id)
+            if name in self.wanted:
+                self.found.add(name)
+                yield item
+
+    @property
+    def missing(self) -> list:
+        return sorted(text for name, text in self.wanted.items() if name not in self.found)
+
+
+def _start_afresh(args) -> bool:
+    """With ``--overwrite``, remove an existing results file and its CSV (just before
+    the run starts). Returns whether a results file is there to resume."""
+    from lidarinv.batch import csv_path_for
+
+    if args.output.exists() and args.overwrite:
+        args.output.unlink()
+        csv_path_for(args.output).unlink(missing_ok=True)
+    return args.output.exists()
+
+
+def _stored_shots(path) -> int:
+    try:
+        with h5py.File(path, "r") as handle:
+            return len(handle.get("shots", {}))
+    except OSError:
+        return 0
 
 
 def run(args) -> int:
-    from lidarinv.batch import connect_dask, invert_many
+    from lidarinv.batch import connect_dask, csv_path_for, invert_many
 
     if not args.file.exists():
         raise ValueError(f"no such file: {args.file}")
-    settings = _settings(args.priors)
+    settings = _settings(args)
     invert = _invert_function(args.invert)
+    check_folder_writable(args.output, "results file")
     items = iter_observations(args.file, args.format, beams=args.beam)
+    selected = None
     if args.shot:
-        items = _selected(items, args.shot)
+        items = selected = _Selected(items, args.shot)
     client = None
     if args.scheduler:
         try:
             client = connect_dask(args.scheduler)
         except ImportError as error:
             raise ValueError(str(error)) from error
+    existed = True  # until known: an interruption then removes nothing
     try:
+        existed = _start_afresh(args)
         summary = invert_many(
             items,
             settings,
@@ -118,6 +164,18 @@ def run(args) -> int:
             max_shots=args.max_shots,
             total=_count(args.file, args.format, args.beam, args.shot),
         )
+    except BaseException as error:
+        if not interrupted(error):
+            raise
+        kept = _stored_shots(args.output)
+        if not existed and kept == 0:  # nothing finished: leave no file behind
+            args.output.unlink(missing_ok=True)
+            csv_path_for(args.output).unlink(missing_ok=True)
+            raise Interrupted("interrupted; no shot finished, no file written") from None
+        raise Interrupted(
+            f"interrupted; {kept} finished shot(s) kept in {args.output}, rerun the "
+            "command to continue"
+        ) from None
     finally:
         if client is not None:
             client.close()
@@ -127,4 +185,7 @@ def run(args) -> int:
         print(f"# failed {shot_id}: {reason}")
     if len(summary.failed) > 10:
         print(f"# ... and {len(summary.failed) - 10} more failed shots (see the CSV)")
-    return 1 if summary.n_failed and not summary.n_done and not summary.n_skipped else 0
+    missing = [] if selected is None or summary.stopped_early else selected.missing
+    if missing:
+        print(f"# shot(s) not found in {args.file}: {', '.join(missing)}")
+    return 1 if summary.n_failed or missing else 0

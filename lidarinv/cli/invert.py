@@ -4,11 +4,25 @@ from pathlib import Path
 
 import numpy as np
 
-from forward.instrument import INSTRUMENT_PRESETS
 from lidarinv.io.formats import FORMATS, iter_observations
 from lidarinv.observe.observation import ShotError
 
+from .options import add_inversion_options, inversion_settings
+from .outputs import check_hdf5_groups, check_plot_folder, save_group
+
 HELP = "sample the posterior of canopy height, volume, cover and LAI for waveform shots"
+
+#: What a user compares with a product's RH98 and canopy cover, printed first:
+#: (quantity, name printed, what it is).
+HEADLINE = (
+    (
+        "footprint_top_height",
+        "canopy height",
+        "tallest stem within the footprint's 1/e² radius (compare with RH98)",
+    ),
+    ("rh98", "RH98 of the fitted waveform", "height above the ground of 98 % of its energy"),
+    ("cover", "canopy cover", "crown cover: fraction of the ground under at least one crown"),
+)
 
 
 def add_arguments(parser) -> None:
@@ -24,45 +38,22 @@ def add_arguments(parser) -> None:
     parser.add_argument(
         "--shot", action="append", help="shot id to invert (repeatable; default: the first)"
     )
-    parser.add_argument("--priors", type=Path, help="TOML file of prior overrides")
-    parser.add_argument(
-        "--instrument",
-        choices=sorted(INSTRUMENT_PRESETS),
-        help="instrument preset (pulse, optics); default: the one the file names",
-    )
-    parser.add_argument("--max-steps", type=int, help="cap on sampler steps")
-    parser.add_argument("--walkers", type=int, help="number of walkers")
+    add_inversion_options(parser)
     parser.add_argument("--seed", type=int, default=0, help="random seed")
     parser.add_argument("-o", "--output", type=Path, required=True, help="posterior HDF5 file")
     parser.add_argument("--plots", type=Path, help="write corner/predictive/profile PNGs here")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def _settings(args):
-    from dataclasses import replace
-
-    from lidarinv.inference import InversionSettings
-
-    if args.priors is not None:
-        if not args.priors.exists():
-            raise ValueError(f"no such priors file: {args.priors}")
-        settings = InversionSettings.from_priors_file(args.priors, instrument=args.instrument)
-    else:
-        settings = InversionSettings(instrument=args.instrument)
-    sampler = settings.sampler
-    if args.max_steps is not None:
-        sampler = replace(sampler, max_steps=args.max_steps)
-    if args.walkers is not None:
-        sampler = replace(sampler, n_walkers=args.walkers)
-    return replace(settings, sampler=sampler)
+def group_of(shot_id) -> str:
+    """The posterior file's group of a shot."""
+    return f"shot_{shot_id}"
 
 
 def _selected(args, rng):
     if args.example is not None:
         from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
 
-        if args.example not in SYNTHETIC_SHOTS:
-            raise ValueError(f"unknown example {args.example!r}; known: {list(SYNTHETIC_SHOTS)}")
         yield synthetic_shot(SYNTHETIC_SHOTS[args.example], rng, shot_id=args.example)
         return
     wanted = None if not args.shot else {str(s) for s in args.shot}
@@ -78,6 +69,42 @@ def _selected(args, rng):
         raise ValueError(f"shot(s) not found in {args.file}: {sorted(wanted)}")
 
 
+def headline(result) -> str:
+    """The footprint's canopy height and cover, then what ``top_height`` is: the lines
+    ``lidarinv invert`` prints before the full table."""
+    summary = result.summary()
+    lines = [f"shot {result.shot_id}: the footprint (median, 90 % interval)"]
+    for name, label, meaning in HEADLINE:
+        if name not in summary:
+            continue
+        row = summary[name]
+        units = "" if row["units"] in ("", "1") else f" {row['units']}"
+        lines.append(
+            f"  {label:<28}{row['median']:8.3g}{units}  [{row['p05']:.3g}, {row['p95']:.3g}]"
+            f"  {meaning}"
+        )
+    if "top_height" in summary:
+        row = summary["top_height"]
+        lines.append(
+            f"  {'stand top_height':<28}{row['median']:8.3g} m  [{row['p05']:.3g}, "
+            f"{row['p95']:.3g}]  upper limit of the stand's height distribution "
+            "(mean + 2 sd), which one footprint rarely reaches"
+        )
+    return "\n".join(lines)
+
+
+def _check_outputs(args) -> None:
+    """Refuse, before any sampling, outputs that cannot be written or would replace a
+    result: the posterior file and group(s), and the figure folder."""
+    if args.example is not None:
+        names = [group_of(args.example)]
+    else:
+        names = [group_of(s) for s in args.shot or ()]
+    check_hdf5_groups(args.output, names, args.overwrite)
+    if args.plots is not None:
+        check_plot_folder(args.plots)
+
+
 def run(args) -> int:
     from lidarinv.inference import invert_shot
     from lidarinv.inference.plots import save_plots
@@ -86,7 +113,13 @@ def run(args) -> int:
         raise ValueError("give a waveform file or --example NAME (one of them)")
     if args.file is not None and not args.file.exists():
         raise ValueError(f"no such file: {args.file}")
-    settings = _settings(args)
+    if args.example is not None:
+        from lidarinv.inference.synthetic import SYNTHETIC_SHOTS
+
+        if args.example not in SYNTHETIC_SHOTS:
+            raise ValueError(f"unknown example {args.example!r}; known: {list(SYNTHETIC_SHOTS)}")
+    settings = inversion_settings(args)
+    _check_outputs(args)
     rng = np.random.default_rng(args.seed)
     failures = 0
     for item in _selected(args, rng):
@@ -94,16 +127,20 @@ def run(args) -> int:
             print(f"shot {item.shot_id}: skipped: {item.reason}")
             failures += 1
             continue
+        group = group_of(item.shot_id)
+        check_hdf5_groups(args.output, [group], args.overwrite)  # the first shot's id
         try:
             result = invert_shot(item, settings, rng=rng, progress=not args.quiet)
         except ValueError as error:
             print(f"shot {item.shot_id}: skipped: {error}")
             failures += 1
             continue
-        result.save(args.output, name=f"shot_{result.shot_id}")
+        save_group(args.output, group, result.write)
+        print(headline(result))
+        print()
         print(result.summary_table())
         if args.plots:
             for path in save_plots(result, args.plots):
                 print(f"wrote {path}")
-        print(f"wrote {args.output} (group shot_{result.shot_id})")
+        print(f"wrote {args.output} (group {group})")
     return 1 if failures else 0

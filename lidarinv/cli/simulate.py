@@ -5,6 +5,8 @@ import numpy as np
 import forward as fw
 from forward.examples import EXAMPLES, example
 
+from .outputs import check_new_file, written_whole
+
 HELP = "simulate waveforms of an explicit stand (stem-map CSV or a built-in example)"
 
 
@@ -38,11 +40,17 @@ def add_arguments(parser):
     parser.add_argument("--shape", choices=fw.SHAPE_NAMES, help="give every crown this shape")
     parser.add_argument("-o", "--output", required=True, help="output HDF5 file")
     parser.add_argument("--plot", help="PNG of waveforms beside crown-volume profiles")
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace the output file if it exists"
+    )
 
 
 def run(args) -> int:
     from lidarinv.io.simulation import write_simulation
 
+    check_new_file(args.output, args.overwrite, "output")
+    if args.plot:
+        check_new_file(args.plot, args.overwrite, "figure")
     if args.example:
         scene = example(args.example)
         stand, instrument, centers = scene.stand, scene.instrument, scene.centers
@@ -71,7 +79,9 @@ def run(args) -> int:
 
     simulator = fw.WaveformSimulator(instrument)
     waveforms = simulator.simulate_many(stand, centers, ground=ground, canopy_reflectance=rho_v)
-    write_simulation(args.output, waveforms, stand, {"source": args.example or str(args.stemmap)})
+    with written_whole(args.output) as partial:
+        source = {"source": args.example or str(args.stemmap)}
+        write_simulation(partial, waveforms, stand, source)
     print(
         f"{'footprint':>9} {'x (m)':>8} {'y (m)':>8} {'top (m)':>8} {'P(0)':>6} "
         f"{'canopy':>7} {'ground':>7}"
@@ -87,8 +97,8 @@ def run(args) -> int:
     if args.plot:
         from lidarinv.plotting import plot_waveforms
 
-        plot_waveforms(
-            waveforms, args.plot, title=f"{args.example or args.stemmap} ({instrument.name})"
-        )
+        with written_whole(args.plot) as partial:
+            title = f"{args.example or args.stemmap} ({instrument.name})"
+            plot_waveforms(waveforms, partial, title=title)
         print(f"wrote {args.plot}")
     return 0

@@ -120,6 +120,34 @@ def footprint_top_height(problem: InversionProblem, x, density_per_ha, rng) -> n
     return mapping.tallest_in_area(values, np.pi * radius**2, uniform)
 
 
+def replicate_observation(post, signal, values, rng) -> np.ndarray:
+    """One replicated observation per posterior sample (n, bins), DN: the model mean
+    b + a·W plus noise of the likelihood's per-bin variance (noise, shot noise and the
+    model discrepancy), set to the floor or the digitiser maximum where the product
+    would have set it. Quantiles over the rows are the posterior predictive bands."""
+    if post.fixed_discrepancy is None:
+        extra = (post.discrepancy * np.asarray(values["gain"])[:, None] * signal) ** 2
+    elif post.fixed_discrepancy.ndim == 2:  # a covariance: its diagonal, per bin
+        extra = np.diag(post.fixed_discrepancy)
+    else:
+        extra = post.fixed_discrepancy
+    mean, variance = model_moments(
+        signal,
+        values["gain"],
+        values["baseline"],
+        values["noise_sigma"],
+        post.shot_factor,
+        extra,
+    )
+    draws = mean + np.sqrt(variance) * rng.standard_normal(mean.shape)
+    data = post.data
+    if data.censored.any() and np.isfinite(data.floor):
+        draws = np.maximum(draws, data.floor)
+    if np.isfinite(data.saturation):
+        draws = np.minimum(draws, data.saturation)
+    return draws
+
+
 def _flat(array, run: SamplerRun):
     return array[run.burn :: run.thin].reshape(-1, *array.shape[2:])
 
@@ -143,6 +171,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
         terms.signal[good], values["gain"], values["baseline"], values["noise_sigma"]
     )[0]
     predictive = np.percentile(mean, QUANTILES, axis=0)
+    replicated = replicate_observation(post, terms.signal[good], values, rng)
     top = float(np.max(values["top_height"]))
     profile_heights = np.linspace(0.0, top, 60)
     profile = post.mapping.crown_volume_profile(values, profile_heights)
@@ -184,6 +213,10 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
         observed=problem.window.samples,
         censored=problem.window.censored,
         predictive=predictive,
+        replicated=np.percentile(replicated, QUANTILES, axis=0),
+        saturated=problem.window.saturated,
+        floor=problem.window.floor,
+        saturation=problem.window.saturation,
         noise_floor=float(a.start_floor),
         priors=space.describe(),
         settings=problem.settings.describe(),

@@ -64,7 +64,11 @@ class Parameter:
 STRUCTURE = {
     "cover": ("1", "crown cover: fraction of ground under at least one crown"),
     "pai": ("m2/m2", "plant area index of the tree crowns (one-sided)"),
-    "top_height": ("m", "top of the height distribution, mean + 2 sd (tallest tree)"),
+    "top_height": (
+        "m",
+        "upper limit of the stand's height distribution (mean + 2 sd); one footprint "
+        "rarely holds a stem that tall",
+    ),
     "height_sd": ("m", "spread (sd) of the tree-height distribution"),
     "crown_length_ratio": ("1", "crown length over tree height"),
     "cone_fraction": ("1", "fraction of stems with conical crowns (the rest ellipsoids)"),

@@ -47,11 +47,22 @@ class InversionResult:
     predictive : array (5, n_bins)
         Quantiles of the model mean b + a·W (DN), rows at :data:`QUANTILES`.
     noise_floor : float (DN)
+        The detection threshold, noise mean + ``n_sigma`` σ, above which the signal's
+        start and end are found.
     priors : list of dict
     settings : dict
     truth : dict
         Known true values for simulated shots.
     version : str
+    replicated : array (5, n_bins) or None
+        Quantiles of replicated observations (DN): the posterior predictive with the
+        noise and the model discrepancy (:func:`.invert.replicate_observation`); None
+        in files written before it was stored.
+    saturated : array of bool or None
+        Window samples at the digitiser maximum (censored from above).
+    floor, saturation : float (DN)
+        The product's floor (censored samples sit at it) and digitiser maximum; NaN if
+        none.
     """
 
     shot_id: object
@@ -74,6 +85,10 @@ class InversionResult:
     settings: dict
     truth: dict = field(default_factory=dict)
     version: str = lidarinv.__version__
+    replicated: np.ndarray | None = None
+    saturated: np.ndarray | None = None
+    floor: float = np.nan
+    saturation: float = np.nan
 
     @property
     def converged(self) -> bool:
@@ -162,6 +177,11 @@ class InversionResult:
         for name in ("profile_heights", "profile", "axis", "observed", "predictive"):
             group.create_dataset(name, data=getattr(self, name))
         group.create_dataset("censored", data=self.censored.astype(np.uint8))
+        if self.replicated is not None:
+            group.create_dataset("replicated", data=self.replicated)
+        if self.saturated is not None:
+            group.create_dataset("saturated", data=self.saturated.astype(np.uint8))
+        group.attrs["floor"], group.attrs["saturation"] = self.floor, self.saturation
         summary = group.create_group("summary")
         for name, stats in self.summary().items():
             summary.attrs[name] = json.dumps(stats)
@@ -196,6 +216,10 @@ class InversionResult:
             settings=json.loads(attrs["settings"]),
             truth=json.loads(attrs["truth"]),
             version=str(attrs["lidarinv_version"]),
+            replicated=group["replicated"][()] if "replicated" in group else None,
+            saturated=group["saturated"][()].astype(bool) if "saturated" in group else None,
+            floor=float(attrs.get("floor", np.nan)),
+            saturation=float(attrs.get("saturation", np.nan)),
         )
 
     def save(self, path, name="posterior", mode="a"):

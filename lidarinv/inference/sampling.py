@@ -349,6 +349,17 @@ def initial_ball(log_prob, modes, ball, n_walkers, rng):
     return walkers
 
 
+def _show_target(bar, next_check, discard, tau, s) -> None:
+    """Count the bar towards the steps convergence needs by the latest τ (burn-in plus
+    ``tau_multiple`` τ, at least the next check), within the step cap, rather than
+    towards the cap itself."""
+    if bar.disable or not np.all(np.isfinite(tau)):
+        return
+    needed = discard + s.tau_multiple * float(np.max(tau))
+    bar.total = int(min(s.max_steps, max(needed, next_check)))
+    bar.refresh()
+
+
 def run_sampler(
     log_posterior,
     space,
@@ -417,7 +428,8 @@ def run_sampler(
     seconds = {"start": time.perf_counter() - clock}
     clock = time.perf_counter()
     history, tau, converged = [], np.full(ndim, np.inf), False
-    bar = tqdm(total=s.max_steps, disable=not progress, desc="sampling", unit="step")
+    bar = tqdm(total=s.max_steps, disable=not progress, desc="sampling", unit="step",
+               dynamic_ncols=True)  # fmt: skip
     bar.update(sampler.iteration)
     next_check = sampler.iteration + s.check_every
     adaptive = [move for move, _ in moves if hasattr(move, "fit")]
@@ -458,6 +470,11 @@ def run_sampler(
             converged = True
             break
         next_check = _following_check(sampler.iteration, s)
+        _show_target(bar, next_check, discard, tau, s)
+    if converged:  # the bar ends full, not at a fraction of the step cap
+        bar.total = sampler.iteration
+        bar.set_postfix_str(f"converged, τ {np.max(tau):.0f}", refresh=False)
+        bar.update(sampler.iteration - bar.n)
     bar.close()
     seconds["sampling"] = time.perf_counter() - clock
     if not converged:

@@ -1,0 +1,289 @@
+"""Write the validation pages from the studies' published JSON summaries.
+
+Each page section reads ``docs/validation/data/<key>.json``, written by
+``python studies/publish.py KEY --command "..."`` from a study's own summary, and turns
+it into tables and a figure. Where a summary has not been published, the section says so
+and gives the command that would produce it; the build does not fail.
+
+Run by ``docs/conf.py`` before Sphinx reads the sources; writes
+``docs/validation/generated/<page>.rst`` and its figures.
+"""
+
+import json
+from pathlib import Path
+
+#: Binomial 95 % range of a coverage, computed where a summary lacks it.
+LEVELS = ("68", "90")
+
+
+def _cell(value) -> str:
+    if value is None:
+        return "–"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, list | tuple):
+        return ", ".join(_cell(v) for v in value)
+    return str(value).replace("|", "/")
+
+
+def table(header, rows, title="") -> str:
+    """An rst list-table."""
+    lines = [f".. list-table:: {title}".rstrip(), "   :header-rows: 1", ""]
+    for row in [header, *rows]:
+        lines.append(f"   * - {_cell(row[0])}")
+        lines += [f"     - {_cell(value)}" for value in row[1:]]
+    return "\n".join(lines) + "\n"
+
+
+def provenance(record) -> str:
+    return (
+        f"Measured with ``{record['command']}`` (summary ``{record['source']}``, commit "
+        f"``{record['commit']}``, published {record['published']}; the figures are those "
+        "of that run on the machine it ran on).\n"
+    )
+
+
+def missing(key, how) -> str:
+    return (
+        ".. note::\n\n"
+        f"   No summary published for ``{key}`` yet. Run ``{how}``, then "
+        f'``python studies/publish.py {key} --command "..."`` and rebuild the docs.\n'
+    )
+
+
+# -- renderers: summary → rst (and figures) ---------------------------------------------
+
+
+def render_coverage(record, figures: Path, key: str) -> str:
+    """Recovery and calibration (``studies/recovery.py``): coverage, centring, errors."""
+    s = record["summary"]
+    quantities = s.get("quantities", {})
+    if not quantities:
+        return f"The run inverted {s.get('n_inverted', 0)} shots: nothing to show.\n"
+    ranges = s.get("binomial_95_range", {})
+    text = (
+        f"{s['n_inverted']} of {s['n_shots']} shots inverted; "
+        f"{_cell(s.get('converged_fraction'))} of the chains reached 50 τ; median "
+        f"{_cell(s.get('median_seconds_per_shot'))} s a shot. Truths drawn from "
+        f"``{s.get('truth', '?')}``; explicit stands: {_cell(s.get('explicit_realisations'))}.\n\n"
+    )
+    if ranges:
+        text += (
+            "A coverage is consistent with its nominal level when it lies in the binomial "
+            f"95 % range for this many shots: {_cell(ranges.get('68'))} at 68 %, "
+            f"{_cell(ranges.get('90'))} at 90 %. z is the truth minus the posterior median "
+            "over half the 68 % interval: median 0 and spread 1 when calibrated.\n\n"
+        )
+    header = [
+        "quantity",
+        "68 % coverage",
+        "90 % coverage",
+        "z median",
+        "z spread",
+        "bias",
+        "RMSE",
+        "direct metric RMSE",
+    ]
+    rows = [
+        [
+            name,
+            q.get("coverage_68"),
+            q.get("coverage_90"),
+            q.get("z_median"),
+            q.get("z_spread"),
+            q.get("bias"),
+            q.get("rmse"),
+            q.get("direct_rmse"),
+        ]
+        for name, q in quantities.items()
+    ]
+    text += table(header, rows) + "\n"
+    figure = _coverage_figure(quantities, ranges, figures / f"{key}.png")
+    text += f".. image:: {figure}\n   :width: 600\n   :alt: coverage per quantity\n\n"
+    return text + provenance(record)
+
+
+def _coverage_figure(quantities, ranges, path: Path) -> str:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(quantities)
+    fig, ax = plt.subplots(figsize=(7.0, 3.2))
+    for offset, level, colour in ((-0.15, "68", "tab:blue"), (0.15, "90", "tab:green")):
+        x = [i + offset for i in range(len(names))]
+        values = [quantities[n].get(f"coverage_{level}") for n in names]
+        ax.plot(x, values, "o", color=colour, label=f"{level} % intervals")
+        if level in ranges:
+            ax.axhspan(*ranges[level], color=colour, alpha=0.15, lw=0)
+        ax.axhline(int(level) / 100, color=colour, ls="--", lw=0.8)
+    ax.set_xticks(
+        range(len(names)), [n.replace("_", " ") for n in names], rotation=30, ha="right", fontsize=8
+    )
+    ax.set_ylabel("coverage (fraction of shots)")
+    ax.set_title(
+        "coverage of the credible intervals; dashed: nominal; bands: binomial 95 % ranges",
+        fontsize=9,
+    )
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path.name
+
+
+def render_speed(record, figures: Path, key: str) -> str:
+    """Inversion speed (``studies/inversion_speed.py``): wall time to convergence."""
+    s = record["summary"]
+    configs = {k: v for k, v in s.items() if isinstance(v, dict) and "median_seconds" in v}
+    rows = [
+        [
+            name,
+            c["median_seconds"],
+            c["within_target_fraction"],
+            c["median_ms_per_step"],
+            c["converged_fraction"],
+            len(c.get("shots", [])),
+        ]
+        for name, c in configs.items()
+    ]
+    header = ["configuration", "median run (s)", "within 10 s", "ms a step", "converged", "runs"]
+    text = table(header, rows) + "\n"
+    for name, c in configs.items():
+        shots = c.get("shots", [])
+        if shots:
+            wanted = ("shot", "seconds", "steps", "max_tau", "converged")
+            keys = [k for k in wanted if k in shots[0]]
+            text += table(keys, [[r.get(k) for k in keys] for r in shots], f"runs of {name}")
+            text += "\n"
+    settings = {k: v for k, v in s.items() if not isinstance(v, dict)}
+    if settings:
+        text += table(["setting", "value"], [[k, v] for k, v in settings.items()]) + "\n"
+    return text + provenance(record)
+
+
+def render_generic(record, figures: Path, key: str) -> str:
+    """Any summary: its scalars, its flat sections and its lists of records as tables."""
+    s = record["summary"]
+    text = ""
+    scalars = [[k, v] for k, v in s.items() if not isinstance(v, dict | list)]
+    if scalars:
+        text += table(["field", "value"], scalars) + "\n"
+    for name, value in s.items():
+        if isinstance(value, dict) and all(not isinstance(v, dict | list) for v in value.values()):
+            text += table(["field", "value"], [[k, v] for k, v in value.items()], name) + "\n"
+        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+            keys = [k for k in value[0] if not isinstance(value[0][k], dict | list)]
+            text += table(keys, [[row.get(k) for k in keys] for row in value], name) + "\n"
+    return text + provenance(record)
+
+
+#: Page → (title, intro, sections); a section is (key, heading, renderer, how to run it).
+PAGES = {
+    "accuracy": (
+        "Accuracy",
+        "How close the fast models come to slow references, and what it costs.",
+        [
+            (
+                "forward-accuracy",
+                "Explicit engine against its converged quadrature",
+                render_generic,
+                "python studies/forward_runtime_vs_error.py --quick",
+            ),
+            (
+                "expected-model-accuracy",
+                "Expected-waveform model against its exact integral",
+                render_generic,
+                "python studies/stand_model_runtime_vs_error.py --quick",
+            ),
+            (
+                "recovery",
+                "Inversion on the study's explicit stands",
+                render_coverage,
+                "python studies/recovery.py --n 200 --max-steps 20000 --workers 2",
+            ),
+        ],
+    ),
+    "speed": (
+        "Speed",
+        "Wall time of an inversion and of a batch, one core each.",
+        [
+            (
+                "inversion-speed",
+                "One GEDI footprint to 50 τ",
+                render_speed,
+                "python studies/inversion_speed.py --n 6 --repeats 3 --config 10-free",
+            ),
+            (
+                "batch-throughput",
+                "Batch throughput",
+                render_generic,
+                "python studies/batch_throughput.py --shots 16 --max-steps 2000 --workers 1 2",
+            ),
+            (
+                "scaling",
+                "Cost against the scene",
+                render_generic,
+                "python studies/scaling.py --quick",
+            ),
+        ],
+    ),
+    "calibration": (
+        "Calibration",
+        "Truths drawn from the prior the inversion uses: Bayesian intervals must then "
+        "cover at their nominal rate, whatever the prior's width.",
+        [
+            (
+                "calibration",
+                "Explicit stands, truths from the prior",
+                render_coverage,
+                "python studies/recovery.py --n 200 --max-steps 20000 --workers 2 --truth prior "
+                "--priors studies/calibration_priors.toml --tag _calibration",
+            ),
+        ],
+    ),
+    "real-products": (
+        "Real products",
+        "Posterior canopy height and cover against the GEDI L2A/L2B and LVIS L2 products "
+        "on the shots of the real files.",
+        [
+            (
+                "real-products",
+                "Against the products' RH98 and cover",
+                render_generic,
+                "the real-product comparison study (to come)",
+            ),
+        ],
+    ),
+}
+
+
+def page_text(page: str, data: Path, figures: Path) -> str:
+    title, intro, sections = PAGES[page]
+    text = f"{title}\n{'=' * len(title)}\n\n{intro}\n\n"
+    for key, heading, render, how in sections:
+        text += f"{heading}\n{'-' * len(heading)}\n\n"
+        path = data / f"{key}.json"
+        if path.exists():
+            text += render(json.loads(path.read_text()), figures, key) + "\n"
+        else:
+            text += missing(key, how) + "\n"
+    return text
+
+
+def write_validation_pages(folder) -> list:
+    """Write ``generated/<page>.rst`` for every page of :data:`PAGES`; returns the paths."""
+    folder = Path(folder)
+    out = folder / "generated"
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for page in PAGES:
+        path = out / f"{page}.rst"
+        text = page_text(page, folder / "data", out)
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
+        paths.append(path)
+    return paths

@@ -1,0 +1,109 @@
+"""Options that ``lidarinv invert`` and ``lidarinv batch`` share, validated by the parser.
+
+Values a run cannot use (no steps, fewer walkers than the ensemble needs, an unknown
+instrument) are refused before any file is read or any sampling starts.
+"""
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+
+from forward.instrument import INSTRUMENT_PRESETS
+
+
+def positive_int(text: str) -> int:
+    """An integer > 0 (argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {value}")
+    return value
+
+
+def walker_count(text: str) -> int:
+    """An even integer ≥ 4 (argparse type); :func:`check_walkers` checks the minimum the
+    settings need."""
+    value = positive_int(text)
+    if value < 4 or value % 2:
+        raise argparse.ArgumentTypeError(f"must be an even integer ≥ 4, got {value}")
+    return value
+
+
+def add_inversion_options(parser) -> None:
+    """``--priors``, ``--instrument``, ``--max-steps``, ``--walkers`` and ``--overwrite``."""
+    parser.add_argument("--priors", type=Path, help="TOML file of prior overrides")
+    parser.add_argument(
+        "--instrument",
+        choices=sorted(INSTRUMENT_PRESETS),
+        help="instrument preset for the pulse and footprint (default: the one the file names)",
+    )
+    parser.add_argument(
+        "--max-steps", type=positive_int, metavar="N", help="cap on sampler steps (default 20000)"
+    )
+    parser.add_argument(
+        "--walkers",
+        type=walker_count,
+        metavar="N",
+        help="walkers of the ensemble (even; at least 2 × free parameters + 2; default 64)",
+    )
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace results the output already holds"
+    )
+
+
+def inversion_settings(args):
+    """``InversionSettings`` from ``--priors``, ``--instrument``, ``--max-steps`` and
+    ``--walkers`` (checked against the free parameters before any sampling)."""
+    from lidarinv.inference import InversionSettings
+
+    changes = {} if args.instrument is None else {"instrument": args.instrument}
+    if args.priors is not None:
+        if not args.priors.exists():
+            raise ValueError(f"no such priors file: {args.priors}")
+        settings = InversionSettings.from_priors_file(args.priors, **changes)
+    else:
+        settings = InversionSettings(**changes)
+    sampler = settings.sampler
+    if args.max_steps is not None:
+        sampler = replace(sampler, max_steps=args.max_steps)
+    if args.walkers is not None:
+        sampler = replace(sampler, n_walkers=args.walkers)
+        check_walkers(settings, args.walkers)
+    return replace(settings, sampler=sampler)
+
+
+def sampled_dimensions(settings) -> int:
+    """Number of coordinates the sampler moves for ``settings`` on a shot whose gain can
+    be integrated out (every bin exactly recorded): the parameter space of
+    :func:`lidarinv.inference.default_space` with the settings' priors."""
+    from lidarinv.inference import default_space
+    from lidarinv.inference.priors import Uniform
+
+    overrides = dict(settings.priors)
+    if not settings.sample_noise:
+        overrides.setdefault("baseline", {"fixed": 0.0})
+        overrides.setdefault("noise_sigma", {"fixed": 1.0})
+    gain_fixed = overrides.get("gain", {}).get("fixed") is not None
+    if settings.marginalise_gain and not gain_fixed and settings.shot_factor == 0:
+        if settings.discrepancy_model != "model":
+            overrides["gain"] = {**overrides.get("gain", {}), "marginalised": True}
+    placeholder = Uniform(0.0, 1.0)
+    nuisance = {name: placeholder for name in ("ground_elevation", "baseline")}
+    nuisance.update(gain=Uniform(1.0, 2.0), noise_sigma=Uniform(1.0, 2.0))
+    space = default_space(
+        nuisance, overrides, settings.ridges, settings.unbounded, settings.tallest_stem
+    )
+    return space.ndim
+
+
+def check_walkers(settings, walkers: int) -> None:
+    """``walkers`` is at least the ensemble's minimum, 2 × sampled coordinates + 2."""
+    ndim = sampled_dimensions(settings)
+    least = 2 * ndim + 2
+    if walkers < least:
+        raise ValueError(
+            f"--walkers {walkers}: the ensemble needs at least {least} walkers for "
+            f"{ndim} sampled parameters (2 × {ndim} + 2)"
+        )

@@ -1,0 +1,103 @@
+"""The documentation builds with warnings as errors, running every tutorial; the
+validation pages say so where a study's summary is absent."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+sys.path.insert(0, str(DOCS))
+
+
+@pytest.mark.docs
+def test_docs_build_without_warnings_and_run_the_tutorials(tmp_path):
+    pytest.importorskip("sphinx")
+    pytest.importorskip("sphinx_gallery")
+    pytest.importorskip("numpydoc")
+    out = tmp_path / "html"
+    command = [
+        sys.executable,
+        "-m",
+        "sphinx",
+        "-W",
+        "--keep-going",
+        "-q",
+        "-b",
+        "html",
+        "-d",
+        str(tmp_path / "doctrees"),
+        str(DOCS),
+        str(out),
+    ]
+    env = {**os.environ, "LIDARINV_DOCS_RERUN": "1", "MPLBACKEND": "Agg"}
+    run = subprocess.run(command, capture_output=True, text=True, env=env, cwd=ROOT)
+    assert run.returncode == 0, run.stderr[-5000:]
+    for page in (
+        "index",
+        "getting-started",
+        "auto_tutorials/plot_02_invert_shot",
+        "how-to/log-posterior",
+        "explanation/conventions",
+        "validation/generated/calibration",
+        "api/_packages/lidarinv.inference",
+    ):
+        assert (out / f"{page}.html").exists(), page
+    tutorial = (out / "auto_tutorials" / "plot_02_invert_shot.html").read_text()
+    assert "canopy height" in tutorial and "sphx-glr-script-out" in tutorial  # it ran
+    stub = (out / "auto_tutorials" / "real_02_invert_real_shot.html").read_text()
+    assert "stub" in stub
+
+
+def test_validation_pages_say_when_a_summary_is_absent(tmp_path):
+    from validation.generate import write_validation_pages
+
+    (tmp_path / "data").mkdir()
+    pages = {p.stem: p.read_text() for p in write_validation_pages(tmp_path)}
+    assert set(pages) == {"accuracy", "speed", "calibration", "real-products"}
+    assert "No summary published for ``calibration`` yet" in pages["calibration"]
+    assert "python studies/recovery.py" in pages["calibration"]
+
+
+def test_validation_pages_turn_a_summary_into_a_table_and_figure(tmp_path):
+    from validation.generate import write_validation_pages
+
+    (tmp_path / "data").mkdir()
+    summary = {
+        "n_shots": 10,
+        "n_inverted": 9,
+        "converged_fraction": 1.0,
+        "truth": "prior",
+        "median_seconds_per_shot": 8.5,
+        "explicit_realisations": True,
+        "binomial_95_range": {"68": [0.44, 0.89], "90": [0.67, 1.0]},
+        "quantities": {
+            "cover": {
+                "n": 9,
+                "coverage_68": 0.667,
+                "coverage_90": 0.889,
+                "z_median": 0.1,
+                "z_spread": 1.0,
+                "bias": -0.01,
+                "rmse": 0.2,
+                "direct_rmse": 0.3,
+            }
+        },
+    }
+    record = {
+        "key": "calibration",
+        "source": "studies/output/recovery_x/summary.json",
+        "command": "python studies/recovery.py --n 10",
+        "published": "2025-01-01",
+        "commit": "abc123",
+        "summary": summary,
+    }
+    (tmp_path / "data" / "calibration.json").write_text(json.dumps(record))
+    write_validation_pages(tmp_path)
+    page = (tmp_path / "generated" / "calibration.rst").read_text()
+    assert "0.667" in page and "0.889" in page and "python studies/recovery.py --n 10" in page
+    assert (tmp_path / "generated" / "calibration.png").stat().st_size > 5000

@@ -1,0 +1,119 @@
+"""Figures a scientist can trust: a posterior predictive that includes the noise, the
+floor and saturation marked and explained, labelled truths, titles that state their
+quantiles and do not overlap, units written one way."""
+
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from tiny_results import tiny_result
+
+from lidarinv.inference.invert import replicate_observation
+from lidarinv.inference.likelihood import WindowData
+from lidarinv.inference.plots import corner_plot, predictive_plot
+from lidarinv.plotting import unit_label
+
+
+def _posterior(n_bins, floor=np.nan, saturation=np.nan, censored=None, fixed=None, eta=0.0):
+    censored = np.zeros(n_bins, bool) if censored is None else censored
+    data = WindowData(
+        axis=np.arange(n_bins, dtype=float),
+        samples=np.zeros(n_bins),
+        censored=censored,
+        saturated=np.zeros(n_bins, bool),
+        floor=floor,
+        saturation=saturation,
+    )
+    return SimpleNamespace(data=data, fixed_discrepancy=fixed, discrepancy=eta, shot_factor=0.0)
+
+
+def test_replicated_observations_carry_the_likelihoods_variance():
+    rng = np.random.default_rng(3)
+    n, bins = 40_000, 5
+    signal = np.tile(np.linspace(0.0, 0.02, bins), (n, 1))
+    values = {"gain": np.full(n, 1000.0), "baseline": np.full(n, 50.0),
+              "noise_sigma": np.full(n, 2.0)}  # fmt: skip
+    covariance = np.diag(np.arange(bins, dtype=float)) + 0.5  # a discrepancy between bins
+    draws = replicate_observation(_posterior(bins, fixed=covariance), signal, values, rng)
+    mean = 50.0 + 1000.0 * signal[0]
+    np.testing.assert_allclose(draws.mean(axis=0), mean, atol=0.05)
+    expected_sd = np.sqrt(4.0 + np.diag(covariance))  # σn² + the discrepancy's diagonal
+    np.testing.assert_allclose(draws.std(axis=0), expected_sd, rtol=0.02)
+    # a discrepancy proportional to the model: (η a W)²
+    per_row = replicate_observation(_posterior(bins, eta=0.2), signal, values, rng)
+    np.testing.assert_allclose(
+        per_row.std(axis=0), np.sqrt(4.0 + (0.2 * 1000.0 * signal[0]) ** 2), rtol=0.02
+    )
+
+
+def test_replicated_observations_stop_at_the_floor_and_the_digitiser_maximum():
+    rng = np.random.default_rng(4)
+    n, bins = 2000, 4
+    values = {"gain": np.full(n, 100.0), "baseline": np.full(n, 10.0),
+              "noise_sigma": np.full(n, 3.0)}  # fmt: skip
+    censored = np.array([True, False, False, False])
+    post = _posterior(bins, floor=9.0, saturation=12.0, censored=censored)
+    draws = replicate_observation(post, np.zeros((n, bins)), values, rng)
+    assert draws.min() == 9.0 and draws.max() == 12.0
+    assert np.mean(draws == 12.0) == pytest.approx(1 - 0.7475, abs=0.02)  # P(N(10, 3) > 12)
+
+
+def _texts(figure):
+    return [text for ax in figure.axes for text in ax.get_legend_handles_labels()[1]]
+
+
+def test_predictive_figure_marks_and_explains_floor_saturation_and_truth():
+    result = tiny_result(seed=1)
+    saturated = np.zeros(result.axis.size, bool)
+    saturated[10:12] = True
+    censored = np.zeros(result.axis.size, bool)
+    censored[:3] = True
+    result = replace(
+        result,
+        replicated=result.predictive + np.array([-3, -1, 0, 1, 3])[:, None],
+        saturated=saturated,
+        censored=censored,
+        saturation=float(result.observed.max()),
+        truth={"ground_elevation": 0.0},
+        settings={"n_sigma": 4.0},
+    )
+    figure = predictive_plot(result)
+    labels = "\n".join(_texts(figure))
+    assert "observations: 90 % interval (5–95 %)" in labels  # with the noise
+    assert "model mean b + a·W: 90 % interval (5–95 %)" in labels  # beside it, without
+    assert "of samples inside" in labels
+    assert "product's floor" in labels and "censored" in labels
+    assert "digitiser maximum" in labels
+    assert "front floor: noise mean + 6 σ of the smoothed noise" in labels
+    assert "true ground" in labels
+    assert len(figure.axes) == 2 and "observed − median model (DN)" in figure.axes[1].get_xlabel()
+
+
+def test_corner_titles_state_their_quantiles_and_do_not_overlap():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    result = replace(tiny_result(seed=2), truth={"cover": 0.5, "top_height": 21.0})
+    figure = corner_plot(result, names=["cover", "top_height", "gain"])
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    titles = [ax.title for ax in figure.axes if ax.get_title()]
+    assert len(titles) == 3
+    assert all("[" in t.get_text() and "]" in t.get_text() for t in titles)
+    boxes = [t.get_window_extent(renderer) for t in titles]
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1 :]:
+            assert not a.overlaps(b)
+    note = "\n".join(t.get_text() for t in figure.texts)
+    assert "median [5 %, 95 %]" in note and "orange lines: the true values" in note
+    assert "upper limit of the stand's height" in note  # why the top-height truth sits high
+    labels = [ax.get_xlabel() for ax in figure.axes if ax.get_xlabel()]
+    assert "top height (m)" in labels and "gain (DN)" in labels
+
+
+def test_units_are_written_one_way():
+    assert unit_label("m2/m2") == "m² m⁻²"
+    assert unit_label("m3/m2/m") == "m³ m⁻² m⁻¹"
+    assert unit_label("stems/ha") == "stems ha⁻¹"
+    assert unit_label("1") == ""
