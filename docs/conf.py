@@ -50,8 +50,7 @@ numpydoc_validation_checks = set()
 sphinx_gallery_conf = {
     "examples_dirs": ["tutorials"],
     "gallery_dirs": ["auto_tutorials"],
-    # only the plot_*.py tutorials run; the real-data ones are shown, not run, until the
-    # package ships its example GEDI and LVIS files
+    # the plot_*.py tutorials run when the docs build; others are shown, not run
     "filename_pattern": r"/plot_",
     "within_subsection_order": "FileNameSortKey",
     "download_all_examples": False,

@@ -283,7 +283,7 @@ def main(argv=None):
     gedi, gedi_rows, gedi_records = gedi_study(files)
     lvis, lvis_rows, lvis_records = lvis_study(files)
     summary = {
-        "data": {k: str(v) for k, v in files.items()},
+        "data": {k: Path(v).name for k, v in files.items()},
         "settings": {"gedi": "processing_settings('gedi')", "lvis": "processing_settings('lvis')"},
         "gedi": gedi,
         "lvis": lvis,

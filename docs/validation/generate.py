@@ -105,6 +105,48 @@ def render_coverage(record, figures: Path, key: str) -> str:
     return text + provenance(record)
 
 
+def render_real_products(record, figures: Path, key: str) -> str:
+    """Direct metrics against the NASA products (``studies/real_products.py``)."""
+    s = record["summary"]
+    text = ""
+    names = {"gedi": "GEDI against L2A and L2B (L2A quality shots)", "lvis": "LVIS against L2"}
+    for instrument, title in names.items():
+        part = s.get(instrument)
+        if not part:
+            continue
+        statuses = ", ".join(f"{k} {v}" for k, v in part.get("statuses", {}).items())
+        flags = ", ".join(f"{k} {v}" for k, v in part.get("flags", {}).items()) or "none"
+        text += (
+            f"**{title}.** {part['shots']} shots; statuses: {statuses}; flags: {flags}; "
+            f"median {_cell(part.get('seconds_per_shot'))} s a shot.\n\n"
+        )
+        header = ["quantity", "shots", "median (ours − product)", "median |d|", "90th pct |d|",
+                  "within 1 m"]  # fmt: skip
+        rows = [
+            [
+                q,
+                d.get("n"),
+                d.get("median"),
+                d.get("median_abs"),
+                d.get("p90_abs"),
+                d.get("within_1m"),
+            ]
+            for q, d in part.get("differences", {}).items()
+        ]
+        text += table(header, rows) + "\n"
+    ratio = s.get("gedi", {}).get("cover_ratio")
+    if ratio:
+        text += (
+            "Cover takes ρv/ρg = 1.5, the ratio of GEDI L2B's own ρv and ρg (median in the "
+            f"file {_cell(ratio.get('product_ratio_median'))}), so the assumed ratio carries "
+            "none of the cover difference; the rest comes from how each estimates the ground "
+            "energy. Had the ratio been 1 or 2, the median cover would have been "
+            f"{_cell(ratio.get('median_cover_at_1'))} or {_cell(ratio.get('median_cover_at_2'))}"
+            f" instead of {_cell(ratio.get('median_cover_at_1_5'))}.\n\n"
+        )
+    return text + provenance(record)
+
+
 def _coverage_figure(quantities, ranges, path: Path) -> str:
     import matplotlib
 
@@ -247,14 +289,15 @@ PAGES = {
     ),
     "real-products": (
         "Real products",
-        "Posterior canopy height and cover against the GEDI L2A/L2B and LVIS L2 products "
-        "on the shots of the real files.",
+        "lidarinv against the GEDI L2A/L2B and LVIS L2 products on the shots of the real "
+        "development files (``../shared/data/real``; other shots of the same acquisitions "
+        "are kept aside to check the work).",
         [
             (
                 "real-products",
-                "Against the products' RH98 and cover",
-                render_generic,
-                "the real-product comparison study (to come)",
+                "Direct metrics against the products",
+                render_real_products,
+                "python studies/real_products.py",
             ),
         ],
     ),
