@@ -1,0 +1,254 @@
+"""Inversion of real GEDI and LVIS shots against the NASA products of the same shots.
+
+Inverts every quality shot of the real files with default settings (GEDI: L2A
+``quality_flag == 1``; LVIS: the shots in the L2 file) and compares the posterior ground,
+RH98 and cover with GEDI L2A/L2B and LVIS L2: median |posterior median − product|, how
+often the product lies inside the 90 % interval (and inside it widened by 1 m, the size
+of the products' own published errors: L2A ground RMSE about 1.4 m), convergence and wall
+time. Writes ``studies/output/real_inversion{tag}/`` with ``summary.json``, ``shots.json``
+(one record a shot), ``rh98.png`` (posterior RH98 against the product's, with intervals)
+and ``predictive_*.png`` (typical, worst and multi-layer shots).
+
+    python studies/real_inversion.py [--data ../shared/data/real | examples]
+                                     [--instrument gedi lvis] [--max-shots N]
+                                     [--max-steps 20000] [--workers 1] [--seed 1]
+                                     [--tag _NAME]
+"""
+
+import argparse
+import json
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from lidarinv.io import iter_observations, read_gedi_l2a, read_gedi_l2b, read_lvis_l2
+from lidarinv.observe import Observation, analyse
+
+HERE = Path(__file__).resolve().parent
+QUANTITIES = ("ground", "rh98", "cover")
+#: Margin (m) by which a height interval is widened before asking if it holds the
+#: product: the products' own errors are of that size.
+WIDENING_M = 1.0
+
+
+def _files(data: str) -> dict:
+    from real_products import _files as product_files
+
+    return product_files(data)
+
+
+def products(files) -> dict:
+    """{(instrument, shot): product values} for the comparison."""
+    out = {}
+    l2a, l2b = read_gedi_l2a(files["gedi-l2a"]), read_gedi_l2b(files["gedi-l2b"])
+    for shot, a in l2a.items():
+        if a["quality_flag"] != 1:
+            continue
+        b = l2b.get(shot, {})
+        out[("gedi", shot)] = {
+            "ground": float(a["elev_lowestmode"]),
+            "rh98": float(a["rh"][98]),
+            "cover": float(b.get("cover", np.nan)),
+        }
+    for shot, record in read_lvis_l2(files["lvis-l2"]).items():
+        out[("lvis", shot)] = {
+            "ground": float(record["zg"]),
+            "rh98": float(record["rh"][98]),
+            "cover": np.nan,
+        }
+    return out
+
+
+def invert_one(job):
+    """One shot: its posterior summary against the product, or why it failed."""
+    obs, product, max_steps, seed = job
+    from dataclasses import replace
+
+    from lidarinv.inference import InversionSettings, invert_shot
+
+    settings = InversionSettings()
+    if max_steps:
+        settings = replace(settings, sampler=replace(settings.sampler, max_steps=max_steps))
+    record = {"shot": obs.shot_id, "instrument": obs.instrument, "product": product}
+    analysis = analyse(obs)
+    record["analysis"] = {"status": analysis.status, "ground": analysis.ground,
+                          "rh98": None if analysis.rh is None else float(analysis.rh[98]),
+                          "n_modes": analysis.n_modes, "flags": analysis.flags}  # fmt: skip
+    start = time.perf_counter()
+    try:
+        result = invert_shot(obs, settings, rng=np.random.default_rng(seed))
+    except ValueError as error:
+        record.update(error=str(error), seconds=time.perf_counter() - start)
+        return record, None
+    record["seconds"] = time.perf_counter() - start
+    record["converged"] = result.converged
+    record["flags"] = list(result.flags)
+    record["steps"] = int(result.diagnostics.get("n_steps", 0))
+    record["posterior"] = {}
+    names = {"ground": "ground_elevation", "rh98": "rh98", "cover": _cover_name(result)}
+    for quantity, name in names.items():
+        values = result.column(name) if name else np.array([])
+        q = np.percentile(values, (5, 50, 95)) if values.size else np.full(3, np.nan)
+        record["posterior"][quantity] = [float(v) for v in q]
+    return record, result
+
+
+def _cover_name(result):
+    """The posterior's gap-based cover if it has one, else its crown cover."""
+    names = set(result.quantity_names)
+    for name in ("gap_cover", "cover"):
+        if name in names:
+            return name
+    return None
+
+
+def statistics(records, instrument) -> dict:
+    rows = [r for r in records if r["instrument"] == instrument]
+    done = [r for r in rows if "posterior" in r]
+    out = {
+        "shots": len(rows),
+        "inverted": len(done),
+        "failed": {str(r["shot"]): r["error"] for r in rows if "error" in r},
+        "converged": int(sum(r["converged"] for r in done)),
+        "not_converged_flagged": int(sum((not r["converged"]) and bool(r["flags"]) for r in done)),
+        "median_seconds": float(np.median([r["seconds"] for r in done])) if done else None,
+        "p90_seconds": float(np.percentile([r["seconds"] for r in done], 90)) if done else None,
+    }
+    for q in QUANTITIES:
+        pairs = [(r["posterior"][q], r["product"][q]) for r in done
+                 if np.isfinite(r["product"][q]) and np.all(np.isfinite(r["posterior"][q]))]  # fmt: skip
+        if not pairs:
+            continue
+        d = np.array([post[1] - prod for post, prod in pairs])
+        widen = WIDENING_M if q != "cover" else 0.0
+        inside = [post[0] <= prod <= post[2] for post, prod in pairs]
+        widened = [post[0] - widen <= prod <= post[2] + widen for post, prod in pairs]
+        out[q] = {
+            "n": len(pairs),
+            "median": float(np.median(d)),
+            "median_abs": float(np.median(np.abs(d))),
+            "p90_abs": float(np.percentile(np.abs(d), 90)),
+            "max_abs": float(np.max(np.abs(d))),
+            "inside_90": float(np.mean(inside)),
+            "inside_90_widened": float(np.mean(widened)),
+        }
+        if q == "ground":
+            far = [r for (post, prod), r in zip(pairs, done) if abs(post[1] - prod) > 3.0]
+            out[q]["off_by_3m"] = len(far)
+            out[q]["off_by_3m_unflagged"] = sum(not r["flags"] for r in far)
+    return out
+
+
+def rh98_figure(records, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
+    for ax, instrument in zip(axes, ("gedi", "lvis")):
+        done = [r for r in records if r["instrument"] == instrument and "posterior" in r]
+        done = [r for r in done if np.isfinite(r["product"]["rh98"])]
+        if not done:
+            ax.set_axis_off()
+            continue
+        x = np.array([r["product"]["rh98"] for r in done])
+        p = np.array([r["posterior"]["rh98"] for r in done])
+        colour = ["tab:blue" if r["converged"] else "tab:red" for r in done]
+        ax.errorbar(x, p[:, 1], yerr=[p[:, 1] - p[:, 0], p[:, 2] - p[:, 1]], fmt="none",
+                    ecolor="0.6", lw=0.8)  # fmt: skip
+        ax.scatter(x, p[:, 1], c=colour, s=12, zorder=3)
+        lim = [min(x.min(), p.min()) - 1, max(x.max(), p.max()) + 1]
+        ax.plot(lim, lim, "k-", lw=0.6)
+        ax.set_xlabel(f"{instrument.upper()} product RH98 (m)")
+        ax.set_ylabel("posterior RH98: median and 90 % interval (m)")
+        ax.set_title(f"{instrument.upper()}: red = not converged", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", default=str(HERE.parent.parent / "shared" / "data" / "real"))
+    parser.add_argument("--instrument", nargs="+", default=["gedi", "lvis"])
+    parser.add_argument("--max-shots", type=int, help="at most this many shots an instrument")
+    parser.add_argument("--max-steps", type=int, help="sampler step cap (default: settings')")
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--tag", default="")
+    args = parser.parse_args(argv)
+    files = _files(args.data)
+    wanted = products(files)
+    out = HERE / "output" / f"real_inversion{args.tag}"
+    out.mkdir(parents=True, exist_ok=True)
+    jobs = []
+    for instrument in args.instrument:
+        shots = [o for o in iter_observations(files[f"{instrument}-l1b"])
+                 if isinstance(o, Observation) and (instrument, o.shot_id) in wanted]  # fmt: skip
+        shots = shots[: args.max_shots] if args.max_shots else shots
+        seeds = np.random.SeedSequence(args.seed).spawn(len(shots))
+        jobs += [
+            (o, wanted[(instrument, o.shot_id)], args.max_steps, s) for o, s in zip(shots, seeds)
+        ]
+    print(f"{len(jobs)} shots to invert")
+    records, results = [], {}
+    with ProcessPoolExecutor(args.workers) as pool:
+        for record, result in pool.map(invert_one, jobs):
+            records.append(record)
+            results[(record["instrument"], record["shot"])] = result
+            post = record.get("posterior", {})
+            print(f"{record['instrument']} {record['shot']}: {record.get('error', '')}"
+                  f"{'' if not post else _line(record)}", flush=True)  # fmt: skip
+    summary = {
+        "data": {k: Path(v).name for k, v in files.items()},
+        "max_steps": args.max_steps,
+        **{i: statistics(records, i) for i in args.instrument},
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
+    (out / "shots.json").write_text(json.dumps(records, indent=1, default=_json))
+    rh98_figure(records, out / "rh98.png")
+    _predictive_figures(records, results, out)
+    print(json.dumps(summary, indent=1, default=float))
+    print(f"wrote {out}")
+
+
+def _line(record) -> str:
+    p, q = record["posterior"], record["product"]
+    return (
+        f"ground {p['ground'][1]:.2f} ({q['ground']:.2f}), RH98 {p['rh98'][1]:.2f} "
+        f"[{p['rh98'][0]:.2f}, {p['rh98'][2]:.2f}] ({q['rh98']:.2f}), cover {p['cover'][1]:.2f} "
+        f"({q['cover']:.2f}), {record['seconds']:.1f} s, "
+        f"{'converged' if record['converged'] else 'NOT converged'}"
+    )
+
+
+def _json(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(type(value).__name__)
+
+
+def _predictive_figures(records, results, out):
+    """The typical and worst shot of each instrument and its most multi-layered one."""
+    from lidarinv.inference.plots import predictive_plot
+
+    for instrument in ("gedi", "lvis"):
+        done = [r for r in records if r["instrument"] == instrument and "posterior" in r]
+        if not done:
+            continue
+        error = [abs(r["posterior"]["ground"][1] - r["product"]["ground"]) for r in done]
+        order = np.argsort(error)
+        chosen = {"typical": done[order[len(order) // 2]], "worst": done[order[-1]],
+                  "layers": max(done, key=lambda r: r["analysis"]["n_modes"])}  # fmt: skip
+        for label, record in chosen.items():
+            result = results[(instrument, record["shot"])]
+            predictive_plot(result, out / f"predictive_{instrument}_{label}.png")
+
+
+if __name__ == "__main__":
+    main()
