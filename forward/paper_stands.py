@@ -28,6 +28,8 @@ Successional stands, ages 5, 20, 60 and 200 years (Sec. III, V-B, VI-B)
 import numpy as np
 
 from .instrument import instrument_preset
+from .realise import realise, scene_extras
+from .scene import ExampleScene
 from .stand_params import StandParams
 
 #: The BOREAS old jack pine stand as :class:`StandParams` values (see above), less the shape.
@@ -112,14 +114,12 @@ def successional_instrument():
 
 
 def successional_scene(age, shape=None, seed=None, plot_m=60.0):
-    """An explicit realisation of a successional stand as an ``ExampleScene``.
+    """An explicit realisation of a successional stand as an
+    :class:`~forward.scene.ExampleScene`.
 
     Stems are a Poisson pattern on a ``plot_m`` square (larger than the paper's 30 m ZELIG
     plot, so that the Gaussian footprint sees no empty margin), one footprint at its centre.
     """
-    from .examples import ExampleScene  # the registry module imports this one lazily
-    from .realise import realise, scene_extras
-
     params = successional_params(age, shape)
     rng = np.random.default_rng(2000 + int(age) if seed is None else seed)
     stand = realise(params, plot_m, rng)
@@ -132,9 +132,3 @@ def successional_scene(age, shape=None, seed=None, plot_m=60.0):
         canopy_reflectance=rho_v,
         description=f"{age}-year successional stand, Howland ME (Sun & Ranson 2000, Fig. 9)",
     )
-
-
-#: Example name → factory, for :data:`forward.examples.EXAMPLES`.
-SUCCESSIONAL_EXAMPLES = {
-    f"successional-{age}": (lambda age=age: successional_scene(age)) for age in SUCCESSIONAL
-}

@@ -107,6 +107,66 @@ class MeasuredPulse:
 PULSE_TYPES = {"gaussian": GaussianPulse, "measured": MeasuredPulse}
 
 
+def support_bins(heights, centres, support):
+    """First and last-plus-one bin whose height lies within a pulse's support of some
+    centre.
+
+    Parameters
+    ----------
+    heights : array (m)
+        Ascending bin heights.
+    centres : array (m)
+        Heights of the point scatterers (e.g. each row's ground).
+    support : (float, float) (m)
+        Offsets below and above a centre beyond which the pulse is taken as zero
+        (``pulse.support(tolerance)``).
+
+    Returns
+    -------
+    (int, int)
+    """
+    low, high = support
+    first = max(int(np.searchsorted(heights, np.min(centres) + low)), 0)
+    last = int(np.searchsorted(heights, np.max(centres) + high, side="right"))
+    return first, last
+
+
+def point_returns(pulse, heights, centres, weights, support):
+    """Samples of point scatterers: a weighted, point-sampled pulse per centre.
+
+    Parameters
+    ----------
+    pulse : GaussianPulse or MeasuredPulse
+    heights : array (m)
+        Ascending bin heights, shape (bins,).
+    centres : array (m)
+        Height of each scatterer, shape (n,).
+    weights : array
+        Return energy of each scatterer times the bin height (e.g. ρg·P(0)·Δz, m), (n,).
+    support : (float, float) (m)
+        Offsets beyond which the pulse is taken as zero (``pulse.support(tolerance)``).
+
+    Returns
+    -------
+    array, shape (n, bins)
+        weights[r]·pulse(heights − centres[r]) within the support bins of the batch
+        (:func:`support_bins`), zero outside.
+
+    Notes
+    -----
+    A flat surface at height z_g returns w·Δz·p(z_j − z_g) in bin j (physics conventions,
+    "Pulse and digitiser"): the pulse p of unit area, point-sampled at the bin centre
+    z_j, times the bin height Δz. The ground of both waveform models is this pulse.
+    """
+    centres = np.asarray(centres, float)
+    out = np.zeros((centres.size, np.size(heights)))
+    first, last = support_bins(heights, centres, support)
+    if last > first:
+        shape = pulse.pdf(heights[None, first:last] - centres[:, None])
+        out[:, first:last] = np.asarray(weights, float)[:, None] * shape
+    return out
+
+
 def layer_kernel(pulse, bin_height, oversampling, tolerance):
     """Response of output samples to unit energy spread uniformly over one fine layer.
 

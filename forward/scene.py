@@ -1,6 +1,7 @@
-"""Ground plane and the uniform understory layer."""
+"""Ground plane, the uniform understory layer, and a scene: a stand with the instrument
+and footprints it is seen with."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -69,3 +70,27 @@ class UniformUnderstory:
     def favd(self) -> float:
         """Foliage area volume density of the layer (m²/m³)."""
         return self.lai / self.height
+
+
+@dataclass(frozen=True)
+class ExampleScene:
+    """A stand with the instrument and footprints it is meant to be seen with.
+
+    Attributes
+    ----------
+    stand : forward.stand.Stand
+    instrument : forward.instrument.Instrument
+    centers : array (n, 2) (m)
+        Footprint centres in stand coordinates.
+    ground : Ground
+    canopy_reflectance : float
+        ρv.
+    description : str
+    """
+
+    stand: object
+    instrument: object
+    centers: np.ndarray
+    ground: Ground = field(default_factory=Ground)
+    canopy_reflectance: float = 0.45
+    description: str = ""

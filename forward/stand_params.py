@@ -465,20 +465,3 @@ class StandParams:
 
     def as_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
-
-
-#: Values of a generic conifer stand (600 stems/ha, heights 15 ± 3 m) for examples and
-#: tests; every other field keeps its :class:`StandParams` default.
-EXAMPLE_VALUES = {
-    "density": 600.0,
-    "height_mean": 15.0,
-    "height_sd": 3.0,
-    "crown_length_ratio": 0.5,
-    "crown_radius_slope": 0.12,
-    "favd": 0.8,
-}
-
-
-def example_stand(**changes) -> StandParams:
-    """The stand of :data:`EXAMPLE_VALUES` with ``changes`` applied."""
-    return StandParams(**{**EXAMPLE_VALUES, **changes})

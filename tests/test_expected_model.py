@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import forward as fw
+from forward.examples import example_stand
 from forward.expected import (
     CONVERGED,
     DEFAULT_FREE,
@@ -15,7 +16,6 @@ from forward.expected import (
     ModelSettings,
 )
 from forward.realise import realise, scene_extras
-from forward.stand_params import example_stand
 
 INSTRUMENT = fw.instrument_preset("gedi", footprint_sigma_m=2.5)
 
@@ -263,7 +263,7 @@ def test_measured_pulse_replaces_gaussian():
 def test_compiled_ground_return_equals_the_numpy_reference():
     """The Gaussian-pulse ground kernel (exp by exact ratios from the peak) gives the numpy
     pulse's samples, for grounds spread far wider than the pulse within one batch."""
-    from forward import expected_ground, expected_numba
+    from forward.expected.ground import ground_return
     from forward.pulse import GaussianPulse
 
     rng = np.random.default_rng(4)
@@ -276,8 +276,8 @@ def test_compiled_ground_return_equals_the_numpy_reference():
     valid = rng.uniform(size=n) > 0.1
     support = pulse.support(1e-12)
     args = (gap0, zg, rho_v, rho_g, valid, heights, dz, pulse, support)
-    fast = expected_numba.gaussian_ground_return(canopy.copy(), *args)
-    slow = expected_ground.ground_return(canopy.copy(), *args)
+    fast = ground_return(canopy.copy(), *args, backend="numba")
+    slow = ground_return(canopy.copy(), *args, backend="numpy")
     for a, b in zip(fast, slow):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15 * b.max())
     ground = slow[2]

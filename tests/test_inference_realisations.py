@@ -10,7 +10,7 @@ from scipy import stats
 from scipy.integrate import quad
 
 from forward.expected import ExpectedWaveformModel
-from forward.expected_vectors import VECTOR_FIELDS, params_from_vector
+from forward.expected.vectors import VECTOR_FIELDS, params_from_vector
 from forward.instrument import instrument_preset
 from lidarinv.inference import InversionSettings, SamplerSettings, build_problem, invert_shot
 from lidarinv.inference.correlated import Rotation

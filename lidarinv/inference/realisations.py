@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from forward.engine import AccuracySettings, WaveformSimulator
-from forward.expected_vectors import CONDITIONING_FIELDS, FIELD_INDEX, params_from_vector
+from forward.expected.vectors import CONDITIONING_FIELDS, FIELD_INDEX, params_from_vector
 from forward.realise import realise, scene_extras
 
 from .posterior import LogPosterior

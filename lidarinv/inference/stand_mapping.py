@@ -18,7 +18,7 @@ import numpy as np
 
 from forward.crowns import CROWN_SHAPES
 from forward.expected import MIX_FIELDS, VECTOR_FIELDS
-from forward.expected_vectors import CONDITIONING_FIELDS
+from forward.expected.vectors import CONDITIONING_FIELDS
 from forward.stand_params import HEIGHT_DISTRIBUTIONS, StandParams
 
 from . import compiled_stand

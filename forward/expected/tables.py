@@ -1,15 +1,20 @@
-"""Numerical building blocks of :mod:`forward.expected`.
+"""Numerical building blocks of :mod:`forward.expected`: the grid tables.
 
 The disc quadrature per crown shape, tail integrals over tree height as one matrix
 product (a fourth-order cell rule), discounted tails, cubic Hermite reads of tabulated
 functions, and Catmull–Rom interpolation on uniform grids, either per row or as a
 constant matrix. All are vectorised over a batch of rows and use float64 throughout.
+Beside them, their scalar twins for the compiled kernels of :mod:`.depth`
+(:func:`cell_weights_at`, :func:`discounted_tail_row`, :func:`hermite_at`), the same
+arithmetic one row at a time.
 """
 
 import math
 
 import numpy as np
 from numpy.polynomial.legendre import leggauss
+
+from ..backends import jit
 
 #: Radial variable of the disc quadrature per shape: ``rho`` (Gauss–Legendre in r/Rc,
 #: smooth for chords linear in ρ) or ``chord`` (in u = sqrt(1 − ρ²), which makes the
@@ -149,6 +154,35 @@ def cell_weights(x):
     return np.where(x < 0.5, series, recurrence)
 
 
+@jit
+def _series(m, x):
+    """Row ``m`` of the cell weights' Taylor series at x (Horner's rule)."""
+    acc = WEIGHT_SERIES[m, -1]
+    for k in range(WEIGHT_SERIES.shape[1] - 2, -1, -1):
+        acc = acc * x + WEIGHT_SERIES[m, k]
+    return acc
+
+
+@jit
+def cell_weights_at(x):
+    """The four weights of :func:`cell_weights` at one x = rate·step, as scalars (the
+    kernels' twin): Taylor series below x = 0.5, moments by recurrence above."""
+    if x < 0.5:
+        return _series(0, x), _series(1, x), _series(2, x), _series(3, x)
+    e = np.exp(-x)
+    m0 = -np.expm1(-x) / x
+    m1 = (m0 - e) / x
+    m2 = (2.0 * m1 - e) / x
+    m3 = (3.0 * m2 - e) / x
+    c = LAGRANGE_CUBIC
+    return (
+        c[0, 0] * m0 + c[0, 1] * m1 + c[0, 2] * m2 + c[0, 3] * m3,
+        c[1, 0] * m0 + c[1, 1] * m1 + c[1, 2] * m2 + c[1, 3] * m3,
+        c[2, 0] * m0 + c[2, 1] * m1 + c[2, 2] * m2 + c[2, 3] * m3,
+        c[3, 0] * m0 + c[3, 1] * m1 + c[3, 2] * m2 + c[3, 3] * m3,
+    )
+
+
 def discounted_tails(g, rate, step, tails=None):
     """S(h_i) = ∫_{h_i}^{h_last} g(h)·exp(−rate·(h − h_i)) dh on a uniform grid.
 
@@ -195,6 +229,23 @@ def discounted_tails(g, rate, step, tails=None):
     return s, rate, decay
 
 
+@jit
+def discounted_tail_row(g, rate, step, out):
+    """:func:`discounted_tails` of one row's samples ``g`` (nodes ≥ 4) at one ``rate``
+    (1/m, already capped) into ``out``: cells by :func:`cell_weights_at`, then the
+    backward recurrence S_i = e^{−rate·step}·S_{i+1} + C_i."""
+    nodes = g.size
+    x = rate * step
+    w0, w1, w2, w3 = cell_weights_at(x)
+    rho = np.exp(-x)
+    out[nodes - 1] = 0.0
+    for i in range(nodes - 2, -1, -1):
+        before = g[i - 1] if i > 0 else 3.0 * g[0] - 3.0 * g[1] + g[2]
+        after = g[i + 2] if i < nodes - 2 else 3.0 * g[i + 1] - 3.0 * g[i] + g[i - 1]
+        cell = w0 * before + w1 * g[i] + w2 * g[i + 1] + w3 * after
+        out[i] = rho * out[i + 1] + step * cell
+
+
 def hermite_read(values, slopes, rows, position, nodes):
     """Read tabulated functions at fractional grid positions by cubic Hermite interpolation.
 
@@ -226,6 +277,16 @@ def hermite_read(values, slopes, rows, position, nodes):
     cubic *= t
     cubic += y0
     return cubic
+
+
+@jit
+def hermite_at(values, slopes, p):
+    """:func:`hermite_read` of one table at one grid position 0 ≤ p ≤ nodes − 1."""
+    i = min(int(p), values.size - 2)
+    t = p - i
+    y0, d0, d1 = values[i], slopes[i], slopes[i + 1]
+    rise = values[i + 1] - y0
+    return y0 + t * (d0 + t * (3.0 * rise - 2.0 * d0 - d1 + t * (d0 + d1 - 2.0 * rise)))
 
 
 def _catmull_rom_weights(t):

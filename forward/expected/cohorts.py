@@ -2,11 +2,11 @@
 
 Cohort 1 follows the vector's height distribution and crown mix; cohort 2, where the
 model has one, its own distribution and the template's mix. Conditioning on the tallest
-tree (:data:`forward.expected_vectors.CONDITIONING_FIELDS`) stops cohort 1 at
+tree (:data:`.vectors.CONDITIONING_FIELDS`) stops cohort 1 at
 ``height_cap`` H, its trees below keeping their intensity λ·f(h) (so λ·F(H) stems on a
 grid ending at H), and adds ``apex_density`` stems per hectare in cohort 1's mix, all of
 height H: a point mass, whose optical depth is a closed form
-(:func:`forward.expected_depth.add_point_depth`).
+(:func:`.depth.add_point_depth`).
 """
 
 from collections.abc import Callable
@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .expected_vectors import FIELD_INDEX as _I
+from .vectors import FIELD_INDEX as _I
 
 
 class Cohort(NamedTuple):

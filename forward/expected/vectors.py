@@ -3,7 +3,8 @@
 The fields a vector may carry (:data:`VECTOR_FIELDS`), the default free ones, and the
 test of which full vectors describe a physical stand (:func:`physical_rows`): finite
 values within each field's bounds, shape fractions summing to 1, and height moments the
-family supports. Invalid rows are masked by the model, never raised on.
+family supports. Invalid rows are masked by the model, never raised on. Vectors are
+built by field name (:func:`vectors_by_name`), never by position;
 :func:`params_from_vector` turns a full vector back into a stand, e.g. to realise it.
 """
 
@@ -11,8 +12,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from .crowns import SHAPE_NAMES
-from .stand_params import StandParams
+from ..crowns import SHAPE_NAMES
+from ..stand_params import StandParams
 
 #: Every quantity a parameter vector may carry, in the order of the model's full vector.
 VECTOR_FIELDS = (
@@ -59,6 +60,34 @@ DEFAULT_FREE = (
 FIELD_INDEX = {name: i for i, name in enumerate(VECTOR_FIELDS)}
 _I = FIELD_INDEX
 _MIX = np.array([_I[name] for name in MIX_FIELDS], np.intp)
+
+
+def vectors_by_name(columns, fields) -> np.ndarray:
+    """Parameter vectors of the fields ``fields``, in their order, from named columns.
+
+    Parameters
+    ----------
+    columns : dict
+        Field name → values per row ((n,) arrays or scalars, broadcast to the rows).
+    fields : tuple of str
+        The vector layout, e.g. a model's ``parameter_names``.
+
+    Returns
+    -------
+    array (n, len(fields))
+
+    Raises
+    ------
+    ValueError
+        Where a field has no column or a column names no field: a name slip is an error,
+        never a silent shift of columns.
+    """
+    missing = [name for name in fields if name not in columns]
+    extra = sorted(set(columns) - set(fields))
+    if missing or extra:
+        raise ValueError(f"vector columns: missing {missing}, not in the layout {extra}")
+    shape = np.broadcast_shapes(*(np.shape(columns[name]) for name in fields))
+    return np.column_stack([np.broadcast_to(columns[name], shape) for name in fields])
 
 
 def _bounds():

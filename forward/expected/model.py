@@ -1,101 +1,32 @@
-r"""The expected waveform of a Poisson stand: a fast forward model for inversion.
+"""The expected-waveform model E[W | θ] of Poisson stands (derivation: :mod:`forward.expected`).
 
-Derivation
-----------
-Let the stems form a Poisson process of intensity λ (stems/m²) with independent marks
-(height h, shape, FAVD u; crown length Lc = c·h and radius Rc(h) follow the allometry).
-Foliage densities of overlapping crowns add, so at a point (x, z) the optical depth above
-z is a sum over trees, τ(x, z) = Σ_i κ·u_i·ℓ_i(x, z) with κ = k·G·Ω and ℓ_i the path
-length through crown i above z. The probability generating functional of a marked Poisson
-process gives
-
-    E[P(x, z)] = E[Π_i exp(−κ u_i ℓ_i)] = exp(−λ · E_mark[∫ (1 − exp(−κ u ℓ(r, z; h))) dA]),
-
-independent of x (stationarity). The waveform is linear in the footprint-weighted mean
-gap P̄(z) = ∫ w(x) P(x, z) dA with ∫ w = 1, so E[P̄(z)] = E[P(x, z)] for any footprint and
-the expected waveform follows from E[P] at the fine-layer edges: a canopy layer returns
-ρv·ΔE[P] and the ground ρg·E[P(0)] (physics conventions, "Radiative transfer").
-
-Inner integral. With ρ = r/Rc and a crown interval [s_lo(ρ), s_hi(ρ)] (fractions of Lc
-above the base (1 − c)h), a column at ρ crosses the crown between a(ρ)·h and b(ρ)·h with
-a = 1 − c + c·s_lo and b = 1 − c + c·s_hi: both ends are proportional to h. With
-Gauss–Legendre nodes ρ_j across the disc (weights w_j, Σ w_j = 1, area dA = π Rc² d(ρ²);
-in ρ for cones and cylinders, in sqrt(1 − ρ²) for spheroids, see
-:func:`forward.expected_tables.radial_rule`) and the cohort/shape height density f_s(h),
-
-    λ E[∫(1 − e^{−κuℓ}) dA] = Σ_s Σ_j w_j ∫ g_s(h) · φ_j(z, h) dh,  g_s = λ π Rc(h)² f_s(h),
-
-    φ_j = 0                                 for h < z/b_j   (crown top below z)
-        = 1 − exp(−κu (b_j h − z))          for z/b_j ≤ h < z/a_j
-        = 1 − exp(−κu (b_j − a_j) h)         for h ≥ z/a_j   (whole chord above z).
-
-So the height integral is exact given tail integrals on a height grid. With the
-discounted tail S(t; r) = ∫_t^∞ g(h) e^{−r(h−t)} dh, r_b = κu b_j and r_d = κu(b_j − a_j),
-
-    ∫ g φ_j dh = A_j(z/b_j) + B_j(z/a_j),
-    A_j(t) = Q0(t) − S(t; r_b),   B_j(t) = e^{−r_d t} [S(t; r_b) − S(t; r_d)],
-
-two smooth functions of one height each. A call tabulates A_j, B_j and their exact slopes
-per parameter vector and cohort on ``height_nodes`` points spanning the cohort's height
-distribution (fourth-order cell rule, :mod:`forward.expected_tables`), continues them
-exactly below the grid and reads them by cubic Hermite interpolation: compiled
-(:mod:`forward.expected_numba`) or with numpy (:mod:`forward.expected_depth`), the same
-numbers to rounding.
-
-Waveform. With ``depth_nodes`` set, E[P] is evaluated on a grid of whole fine layers
-(about ``depth_nodes`` points up to the template's tallest tree) starting on the bin edge
-at or below each row's ground g; Catmull–Rom interpolation to the layer edges, the layer
-returns ρv·ΔE[P] and the layer kernel of the explicit engine
-(:func:`forward.pulse.layer_kernel`) are then one constant matrix, and each row is
-shifted by whole bins (:mod:`forward.expected_grid`, compiled in
-:mod:`forward.expected_numba`). With ``depth_nodes=None``, or an understory, E[P] is evaluated at
-every fine-layer edge (z = edge − g) and convolved as one matrix product. The uniform
-understory multiplies E[P] by its own transmission; the ground pulse is ρg·E[P(0)]·Δz·
-pulse(z_j − g), for a Gaussian or a measured pulse alike. Slopes are not modelled here.
-
-Conditioning on the tallest tree. ``height_cap`` H stops cohort 1 at H: its trees below
-keep their intensity, λ·f(h) for h ≤ H, so the cohort holds λ·F(H) stems on a grid ending
-at H. ``apex_density`` adds that many stems per hectare, in cohort 1's shape mix, all of
-height H: their depth is the closed form Σ_j w_j·λ_H·π·Rc(H)²·(1 − e^{−κu_j·c_j(z)}),
-c_j(z) the chord of node j above z (:mod:`forward.expected_cohorts`). Together they give
-the expected waveform of a footprint whose tallest tree is known, e.g. a latent tallest
-stem in the inversion; both are checked against the mean of explicit stands.
+:class:`ExpectedWaveformModel` precomputes once per instrument, window and template (the
+layer kernel, the radial quadrature, the tables' matrices) and evaluates batches of
+parameter vectors: their cohorts (:mod:`.cohorts`), the trees' optical depth on a grid of
+whole fine layers (:mod:`.depth`), the canopy samples (:mod:`.grid`) and the ground
+(:mod:`.ground`), each compiled or with numpy by one ``backend`` setting.
 """
-
-from functools import partial
 
 import numpy as np
 
-from . import expected_depth, expected_grid, expected_ground, expected_numba
-from .crowns import CROWN_SHAPES, SHAPE_NAMES
-from .expected_cohorts import Cohort, cohorts
-from .expected_settings import (
-    CONVERGED,  # noqa: F401  (re-exported)
-    GRID_UNDERSHOOT,
-    ExpectedWaveforms,
-    ModelSettings,
-    engine_oversampling,
-)
-from .expected_tables import (
-    catmull_rom,
-    grid_operator,
-    radial_rule,
-    tail_integrals,
-    tail_matrix,
-)
-from .expected_vectors import (
+from ..backends import resolve
+from ..crowns import CROWN_SHAPES, SHAPE_NAMES
+from ..pulse import layer_kernel
+from ..stand_params import HEIGHT_DISTRIBUTIONS, StandParams
+from .cohorts import Cohort, cohorts
+from .depth import groups, tree_depth
+from .grid import clip_keeping_energy, grid_canopy
+from .ground import ground_return
+from .settings import GRID_UNDERSHOOT, ExpectedWaveforms, ModelSettings, engine_oversampling
+from .tables import catmull_rom, grid_operator, radial_rule, tail_matrix
+from .vectors import (
     CONDITIONING_FIELDS,
     DEFAULT_FREE,
     MIX_FIELDS,
     VECTOR_FIELDS,
     physical_rows,
 )
-from .expected_vectors import FIELD_INDEX as _I
-from .pulse import GaussianPulse, layer_kernel
-from .stand_params import HEIGHT_DISTRIBUTIONS, StandParams
-
-#: Compiled ground returns by (backend, pulse type); others take the numpy function.
-GROUND_RETURNS = {("numba", GaussianPulse): expected_numba.gaussian_ground_return}
+from .vectors import FIELD_INDEX as _I
 
 
 class ExpectedWaveformModel:
@@ -178,21 +109,10 @@ class ExpectedWaveformModel:
         self._family = HEIGHT_DISTRIBUTIONS[template.height_family]
         self._kappa = instrument.extinction_per_favd
         self._ground_support = instrument.pulse.support(1e-12)
-        if s.backend not in ("auto", "numba", "numpy"):
-            raise ValueError(f"backend must be 'auto', 'numba' or 'numpy', got {s.backend!r}")
-        if s.backend == "numba" and not expected_numba.AVAILABLE:
-            raise ImportError("ModelSettings(backend='numba') needs numba installed")
-        compiled = s.backend != "numpy" and expected_numba.AVAILABLE and s.height_nodes >= 4
+        # the compiled kernels need grids of at least four nodes
+        compiled = resolve(s.backend) == "numba" and s.height_nodes >= 4
         self.backend = "numba" if compiled else "numpy"
-        self._ground_return = GROUND_RETURNS.get(
-            (self.backend, type(instrument.pulse)), expected_ground.ground_return
-        )
-        self._add_depth = partial(
-            expected_depth.add_tree_depth,
-            tails=self._tails,
-            a_groups=expected_depth.groups(self._s_lo),
-            b_groups=expected_depth.groups(self._s_hi),
-        )
+        self._depth_tables = (self._tails, groups(self._s_lo), groups(self._s_hi))
         # the depth grid of the fast path: whole fine layers, about depth_nodes nodes up
         # to the template's tallest tree
         self._per_cell, self._operators = None, {}
@@ -242,7 +162,7 @@ class ExpectedWaveformModel:
 
     def full_vectors(self, theta) -> np.ndarray:
         """Rows of parameter vectors completed with the template: (n, len(VECTOR_FIELDS)),
-        e.g. for :func:`forward.expected_vectors.params_from_vector`."""
+        e.g. for :func:`forward.expected.vectors.params_from_vector`."""
         return self._full(theta)
 
     def valid(self, theta) -> np.ndarray:
@@ -271,10 +191,10 @@ class ExpectedWaveformModel:
         for start in range(0, n, chunk):
             rows = slice(start, start + chunk)
             canopy[rows], gap0[rows] = self._canopy(full[rows])
-        samples, canopy, ground = self._ground_return(
+        samples, canopy, ground = ground_return(
             canopy, gap0, full[:, _I["ground_elevation"]], full[:, _I["canopy_reflectance"]],
             full[:, _I["ground_reflectance"]], valid, self.heights, self.instrument.bin_height,
-            self.instrument.pulse, self._ground_support,
+            self.instrument.pulse, self._ground_support, backend=self.backend,
         )  # fmt: skip
         return ExpectedWaveforms(samples, canopy, ground, gap0, valid)
 
@@ -298,7 +218,7 @@ class ExpectedWaveformModel:
             again = v[redo]
             cohorts = self._cohorts(again)
             canopy[redo], gap0[redo] = self._canopy_edges(again, cohorts, self._top(cohorts))
-            canopy = expected_grid.clip_keeping_energy(canopy, redo)
+            canopy = clip_keeping_energy(canopy, redo)
         return canopy, gap0
 
     def _canopy_edges(self, v, cohorts, top):
@@ -341,27 +261,15 @@ class ExpectedWaveformModel:
         scale_u = np.divide(
             self._kappa * lai, top_u, out=np.zeros_like(lai), where=understory & (top_u != 0)
         )
-        operator = self._grid_operator(nodes)
-        densities = self._cohort_densities(v, cohorts) if self.backend == "numba" else None
-        if densities:  # one compiled call from the depth grid to the samples
-            return expected_numba.grid_canopy(
-                densities, self._point_masses(v, cohorts), *self._crown_columns(v), z0, step,
-                nodes, operator, shift, scale_u, top_u, self.layer_height, self.heights.size,
-                GRID_UNDERSHOOT,
-            )  # fmt: skip
-        z = z0[:, None] + step * np.arange(nodes)
-        np.maximum(z, 0.0, out=z)
-        depth = self._tree_depth(v, z, cohorts)
-        assemble = (
-            expected_numba.assemble_grid if self.backend == "numba" else expected_grid.assemble_grid
-        )
-        return assemble(
-            depth, operator, shift, scale_u, top_u, z0, self.layer_height, self.heights.size,
-            GRID_UNDERSHOOT,
+        return grid_canopy(
+            self._cohort_densities(v, cohorts), self._point_masses(v, cohorts),
+            self._crown_columns(v), z0, step, nodes, self._grid_operator(nodes), shift,
+            scale_u, top_u, self.layer_height, self.heights.size, GRID_UNDERSHOOT,
+            backend=self.backend, tables=self._depth_tables,
         )  # fmt: skip
 
     def _grid_operator(self, nodes):
-        """:func:`forward.expected_tables.grid_operator` for ``nodes``, cached."""
+        """:func:`.tables.grid_operator` for ``nodes``, cached."""
         if nodes not in self._operators:
             if len(self._operators) >= 16:
                 self._operators.clear()
@@ -371,7 +279,7 @@ class ExpectedWaveformModel:
         return self._operators[nodes]
 
     def _cohorts(self, v) -> list[Cohort]:
-        """The cohorts of full vectors ``v`` (:func:`forward.expected_cohorts.cohorts`)."""
+        """The cohorts of full vectors ``v`` (:func:`.cohorts.cohorts`)."""
         two = self.template.cohort2_fraction > 0 or "cohort2_fraction" in self.parameter_names
         return cohorts(
             v,
@@ -458,45 +366,9 @@ class ExpectedWaveformModel:
         return self._kappa * lai * np.clip(hu - z, 0.0, None) / hu
 
     def _tree_depth(self, v, z, cohorts):
-        """λ·E[∫(1 − e^{−κuℓ}) dA] at heights z ≥ 0 (n, e), for full vectors v (n, …).
-
-        Per cohort, every radial node j of every shape contributes A_j(z/b_j) + B_j(z/a_j)
-        with two functions of one height t each (see the module docstring),
-
-            A_j(t) = Q0(t) − S_j(t; κu b_j),
-            B_j(t) = e^{−κu(b_j − a_j) t} [S_j(t; κu b_j) − S_j(t; κu(b_j − a_j))],
-
-        where S(t; r) = ∫_t^∞ g(h) e^{−r(h − t)} dh is a discounted tail. They are
-        tabulated with their exact slopes (A' = −r_b S_b, B' = −r_d B + e^{−r_d t}(r_b S_b
-        − r_d S_d)) on each cohort's height grid and read by cubic Hermite interpolation;
-        nodes sharing a(ρ) (every node of a cone, cylinder or hemi-ellipsoid) or b(ρ) are
-        summed before the read.
-        """
-        depth = np.zeros_like(z)
-        densities = self._cohort_densities(v, cohorts)
-        points = self._point_masses(v, cohorts)
-        if self.backend == "numba":
-            columns = self._crown_columns(v)
-            for pdf, lo, step, stems, w in densities:
-                expected_numba.add_cohort_depth(pdf, lo, step, stems, *columns, w, z, depth)
-            if points is not None:
-                stems, height, w = points
-                expected_numba.add_point_depth(stems, height, *columns, w, z, depth)
-            return depth
-        c = v[:, _I["crown_length_ratio"]]
-        a = np.maximum(1.0 - c[:, None] + c[:, None] * self._s_lo, 1e-12)  # (n, J)
-        b = 1.0 - c[:, None] + c[:, None] * self._s_hi
-        ku = self._kappa * v[:, _I["favd"], None] * self._node_favd
-        r0, r1 = v[:, _I["crown_radius_intercept"]], v[:, _I["crown_radius_slope"]]
-        for pdf, lo, step, stems, w in densities:
-            h = lo[:, None] + step[:, None] * self._unit_grid
-            norm = step * tail_integrals(pdf, self._tails)[:, 0]
-            radius = r0[:, None] + r1[:, None] * h
-            scale = (np.pi / 1e4) * stems / np.where(norm > 0, norm, 1.0)
-            g = scale[:, None] * radius**2 * pdf
-            self._add_depth(g, lo, step, a, b, ku, w, z, depth)
-        if points is not None:
-            stems, height, w = points
-            g = (np.pi / 1e4) * stems * (r0 + r1 * height) ** 2
-            expected_depth.add_point_depth(g, height, a, b, ku, w, z, depth)
-        return depth
+        """λ·E[∫(1 − e^{−κuℓ}) dA] at heights z ≥ 0 (n, e), for full vectors v (n, …):
+        :func:`.depth.tree_depth` of the rows' cohorts."""
+        return tree_depth(
+            self._cohort_densities(v, cohorts), self._point_masses(v, cohorts),
+            self._crown_columns(v), z, backend=self.backend, tables=self._depth_tables,
+        )  # fmt: skip

@@ -28,8 +28,9 @@ class ModelSettings:
     max_elements : int
         Rows are processed in chunks so that no work array exceeds this many elements.
     backend : str
-        ``"numba"`` (compiled tree depth; needs numba), ``"numpy"``, or ``"auto"``: numba
-        when it can be imported. Both give the same results to rounding.
+        ``"numba"`` (compiled depth, assembly and ground; needs numba), ``"numpy"``, or
+        ``"auto"``: numba when it can be imported (:func:`forward.backends.resolve`).
+        Both give the same results to rounding.
     """
 
     radial_nodes: int = 6
