@@ -30,7 +30,17 @@ EXAMPLE_VALUES = {
 
 
 def example_stand(**changes) -> StandParams:
-    """The stand of :data:`EXAMPLE_VALUES` with ``changes`` applied."""
+    """A generic conifer stand (:data:`EXAMPLE_VALUES`) with changes.
+
+    Parameters
+    ----------
+    **changes
+        StandParams fields replacing the example's.
+
+    Returns
+    -------
+    StandParams
+    """
     return StandParams(**{**EXAMPLE_VALUES, **changes})
 
 
@@ -65,6 +75,22 @@ def jack_pine(shape="hemi-ellipsoid", seed=1993) -> ExampleScene:
     about 165 m³ of cone or 330 m³ of ellipsoid crown in a 10 m footprint, against the
     paper's 180 and 310 m³), the nine footprint centres on a 10 m grid from (15, 15) m,
     ρv = 0.45 and ρg = 0.3.
+
+    Parameters
+    ----------
+    shape : str
+        The crown shape of every tree.
+    seed : int
+        Seed of the stem map.
+
+    Returns
+    -------
+    ExampleScene
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626.
     """
     rng = np.random.default_rng(seed)
     n = 1900

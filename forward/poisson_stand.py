@@ -11,10 +11,10 @@ foliage area L = λ·FAVD·E[π R² ℓ h]·Σ_s m_s κ_s v_s, with m_s the shap
 their volume fractions and κ_s their FAVD ratios. On a disc holding N ~ Poisson(λ·A)
 stems of height survival S(h), the tallest stem H has P(H ≤ h) = exp(−λ·A·S(h)).
 
-Every function here is written once, with numpy's ufuncs, so that it serves arrays,
-scalars and compiled kernels alike: :func:`forward.derived`'s quadratures, the
-inversion's stand mapping and its compiled kernel (``forward.backends.jit`` of these
-functions) all call them.
+Every function here is written once, with numpy's ufuncs and without calls to other
+Python functions, so that it serves arrays, scalars and compiled kernels alike:
+:mod:`forward.derived`'s quadratures, the inversion's stand mapping and its compiled
+kernel (``forward.backends.jit`` of these functions) all call them.
 
 References
 ----------
@@ -77,9 +77,10 @@ def cover_from_density(density, crown_area):
     Returns
     -------
     float or array
-        Cover c.
+        Cover c: :func:`cover_from_crown_count` of X = λ·E[π R²] (written out, so that
+        compiled kernels can call it).
     """
-    return cover_from_crown_count(density * crown_area)
+    return -np.expm1(-(density * crown_area))
 
 
 def density_from_cover(cover, crown_area):
@@ -96,8 +97,10 @@ def density_from_cover(cover, crown_area):
     Returns
     -------
     float or array (stems/m²)
+        :func:`crown_count` over E[π R²] (written out, so that compiled kernels can call
+        it).
     """
-    return crown_count(cover) / crown_area
+    return -np.log1p(-cover) / crown_area
 
 
 def crown_area_moment(r0, r1, m1, m2):
@@ -263,3 +266,25 @@ def tallest_survival(uniform, stems):
         at or above 1 no stem stands (P(none) = e^{−N}).
     """
     return -np.log(uniform) / stems
+
+
+def footprint_gap_cv2(gap0, crown_area, area):
+    """Squared relative spread of the gap fraction a footprint sees over a Poisson stand.
+
+    Parameters
+    ----------
+    gap0 : float or array
+        The expected gap fraction P(0), clipped to [1e-12, 1].
+    crown_area : float or array (m²)
+        E[π R²], the mean crown area.
+    area : float (m²)
+        The footprint's effective area (``Instrument.footprint_effective_area_m2``).
+
+    Returns
+    -------
+    float or array
+        CV² = (1 − P)/P · E[π R²]/A: a footprint of A holds about A/E[π R²] independent
+        crown-sized patches, each covered with probability 1 − P.
+    """
+    gap0 = np.clip(gap0, 1e-12, 1.0)
+    return (1.0 - gap0) / gap0 * crown_area / area

@@ -30,18 +30,57 @@ class GaussianPulse:
         return ns_to_height(self.fwhm_ns) / FWHM_PER_SIGMA
 
     def pdf(self, d):
+        """Pulse density at height offsets.
+
+        Parameters
+        ----------
+        d : float or array (m)
+            d = z_sample − z_scatterer.
+
+        Returns
+        -------
+        float or array (1/m)
+            exp(−d²/2σz²)/(σz·√(2π)), of unit area.
+        """
         s = self.sigma_m
         return np.exp(-0.5 * (np.asarray(d) / s) ** 2) / (s * np.sqrt(2 * np.pi))
 
     def cdf(self, d):
+        """Pulse area below height offsets.
+
+        Parameters
+        ----------
+        d : float or array (m)
+
+        Returns
+        -------
+        float or array
+            Φ(d/σz).
+        """
         return ndtr(np.asarray(d) / self.sigma_m)
 
     def support(self, tolerance):
-        """Offsets (m) outside which each tail holds less than ``tolerance`` of the area."""
+        """Offsets outside which each tail holds less than ``tolerance`` of the area.
+
+        Parameters
+        ----------
+        tolerance : float
+
+        Returns
+        -------
+        (float, float) (m)
+            ∓σz·Φ⁻¹(tolerance).
+        """
         half = -ndtri(tolerance) * self.sigma_m
         return -half, half
 
     def describe(self) -> dict:
+        """The pulse's settings, for stored outputs.
+
+        Returns
+        -------
+        dict
+        """
         return {"pulse": "gaussian", "pulse_fwhm_ns": self.fwhm_ns}
 
 
@@ -86,9 +125,30 @@ class MeasuredPulse:
         object.__setattr__(self, "_cumulative", cumulative / cumulative[-1])
 
     def pdf(self, d):
+        """Pulse density at height offsets, linear between the samples.
+
+        Parameters
+        ----------
+        d : float or array (m)
+
+        Returns
+        -------
+        float or array (1/m)
+            Zero outside the sampled span.
+        """
         return np.interp(d, self._offsets, self._density, left=0.0, right=0.0)
 
     def cdf(self, d):
+        """Pulse area below height offsets: the exact integral of the linear interpolant.
+
+        Parameters
+        ----------
+        d : float or array (m)
+
+        Returns
+        -------
+        float or array
+        """
         d = np.clip(np.asarray(d, float), self._offsets[0], self._offsets[-1])
         k = np.clip(np.searchsorted(self._offsets, d, side="right") - 1, 0, self._offsets.size - 2)
         step = self._offsets[k + 1] - self._offsets[k]
@@ -97,10 +157,27 @@ class MeasuredPulse:
         return self._cumulative[k] + step * (p0 * t + 0.5 * (p1 - p0) * t * t)
 
     def support(self, tolerance):
+        """The sampled span of the pulse (finite support).
+
+        Parameters
+        ----------
+        tolerance : float
+            Ignored.
+
+        Returns
+        -------
+        (float, float) (m)
+        """
         del tolerance  # the measured pulse has finite support
         return float(self._offsets[0]), float(self._offsets[-1])
 
     def describe(self) -> dict:
+        """The pulse's settings, for stored outputs.
+
+        Returns
+        -------
+        dict
+        """
         return {"pulse": "measured", "pulse_sample_ns": self.sample_ns}
 
 
@@ -170,12 +247,15 @@ def point_returns(pulse, heights, centres, weights, support):
 def layer_kernel(pulse, bin_height, oversampling, tolerance):
     """Response of output samples to unit energy spread uniformly over one fine layer.
 
-    Fine layers of thickness ``h = bin_height / oversampling`` tile the height axis with
-    their edges on the digitiser bin edges. For a bin whose centre lies ``q`` layers above
-    the layer (``q = j·m − i`` in global indices), the sample is
-    ``Δz/h · [C(d + h/2) − C(d − h/2)]`` with ``d = (q + (m − 1)/2)·h`` and ``C`` the pulse
-    CDF: the exact convolution of a uniform layer with the pulse, point-sampled at the bin
-    centre and multiplied by Δz.
+    Parameters
+    ----------
+    pulse : GaussianPulse or MeasuredPulse
+    bin_height : float (m)
+        Δz.
+    oversampling : int
+        Fine layers per bin, m; a layer is h = Δz/m thick.
+    tolerance : float
+        Pulse tail left out (``pulse.support(tolerance)``).
 
     Returns
     -------
@@ -183,6 +263,14 @@ def layer_kernel(pulse, bin_height, oversampling, tolerance):
         Offset of the first kernel tap.
     taps : array
         Kernel values for offsets ``q_min, q_min + 1, …``.
+
+    Notes
+    -----
+    Fine layers tile the height axis with their edges on the digitiser bin edges. For a
+    bin whose centre lies ``q`` layers above the layer (``q = j·m − i`` in global indices),
+    the sample is Δz/h · [C(d + h/2) − C(d − h/2)] with d = (q + (m − 1)/2)·h and C the
+    pulse CDF: the exact convolution of a uniform layer with the pulse, point-sampled at
+    the bin centre and multiplied by Δz.
     """
     m = int(oversampling)
     h = bin_height / m

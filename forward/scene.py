@@ -37,7 +37,17 @@ class Ground:
         return self.slope_deg == 0.0
 
     def elevation(self, dx, dy):
-        """Ground height (m) at offsets (dx, dy) from the beam centre."""
+        """Ground height at offsets from the beam centre.
+
+        Parameters
+        ----------
+        dx, dy : float or array (m)
+
+        Returns
+        -------
+        float or array (m)
+            tan(slope)·(cos(aspect)·dx + sin(aspect)·dy); zeros on flat ground.
+        """
         if self.is_flat:
             return np.zeros(np.broadcast(dx, dy).shape)
         gradient = np.tan(np.radians(self.slope_deg))

@@ -200,34 +200,113 @@ class HeightFamily:
     fast: object
 
     def frozen(self, mean, sd, truncation=2.0):
-        """Frozen scipy distribution (convenient, but slow to build: not for hot loops)."""
+        """Frozen scipy distribution (convenient, but slow to build: not for hot loops).
+
+        Parameters
+        ----------
+        mean, sd : float (m)
+            As :attr:`meaning` says for the family.
+        truncation : float (sd units)
+
+        Returns
+        -------
+        scipy.stats.rv_frozen
+        """
         args, loc, scale = self.arguments(mean, sd, truncation)
         return self.dist(*args, loc=loc, scale=scale)
 
     def pdf(self, x, mean, sd, truncation=2.0):
-        """Density (1/m) at heights ``x`` (m)."""
+        """Height density.
+
+        Parameters
+        ----------
+        x : float or array (m)
+        mean, sd : float or array (m)
+        truncation : float (sd units)
+
+        Returns
+        -------
+        float or array (1/m)
+        """
         return self.fast("pdf", x, *self.arguments(mean, sd, truncation))
 
     def ppf(self, q, mean, sd, truncation=2.0):
-        """Height (m) below which a fraction ``q`` of the trees lies."""
+        """Height below which a fraction of the trees lies.
+
+        Parameters
+        ----------
+        q : float or array
+        mean, sd : float or array (m)
+        truncation : float (sd units)
+
+        Returns
+        -------
+        float or array (m)
+        """
         return self.fast("ppf", q, *self.arguments(mean, sd, truncation))
 
     def isf(self, q, mean, sd, truncation=2.0):
-        """Height (m) above which a fraction ``q`` of the trees lies."""
+        """Height above which a fraction of the trees lies.
+
+        Parameters
+        ----------
+        q : float or array
+        mean, sd : float or array (m)
+        truncation : float (sd units)
+
+        Returns
+        -------
+        float or array (m)
+        """
         return self.fast("isf", q, *self.arguments(mean, sd, truncation))
 
     def sf(self, x, mean, sd, truncation=2.0):
-        """Fraction of the trees taller than ``x`` (m)."""
+        """Fraction of the trees taller than a height.
+
+        Parameters
+        ----------
+        x : float or array (m)
+        mean, sd : float or array (m)
+        truncation : float (sd units)
+
+        Returns
+        -------
+        float or array
+            S(x).
+        """
         return self.fast("sf", x, *self.arguments(mean, sd, truncation))
 
     def raw_moments(self, orders, mean, sd, truncation=2.0):
-        """E[h^k] (m^k) for each order k in ``orders``, on a last axis, in closed form."""
+        """Raw moments of tree height, in closed form.
+
+        Parameters
+        ----------
+        orders : sequence of int
+        mean, sd : float or array (m)
+        truncation : float (sd units)
+
+        Returns
+        -------
+        array (..., len(orders)) (m^k)
+            E[h^k] for each order k, on a last axis.
+        """
         orders = tuple(int(k) for k in np.ravel(orders))
         return self.fast("moments", orders, *self.arguments(mean, sd, truncation))
 
     def mean_above(self, x, mean, sd, truncation=2.0):
-        """∫ₓ^∞ h·f(h) dh (m): the partial mean of the trees taller than ``x`` (m), in
-        closed form (divided by :meth:`sf`, their mean height)."""
+        """Partial mean of the trees taller than a height, in closed form.
+
+        Parameters
+        ----------
+        x : float or array (m)
+        mean, sd : float or array (m)
+        truncation : float (sd units)
+
+        Returns
+        -------
+        float or array (m)
+            ∫ₓ^∞ h·f(h) dh; divided by :meth:`sf`, the trees' mean height.
+        """
         return self.fast("mean_above", x, *self.arguments(mean, sd, truncation))
 
 
@@ -261,7 +340,24 @@ HEIGHT_DISTRIBUTIONS: dict[str, HeightFamily] = {
 
 
 def height_distribution(family, mean, sd, truncation=2.0):
-    """Frozen scipy distribution of tree height (m) for one family (array-aware)."""
+    """Frozen scipy distribution of tree height for one family (array-aware).
+
+    Parameters
+    ----------
+    family : str
+        A key of :data:`HEIGHT_DISTRIBUTIONS`.
+    mean, sd : float or array (m)
+    truncation : float (sd units)
+
+    Returns
+    -------
+    scipy.stats.rv_frozen
+
+    Raises
+    ------
+    ValueError
+        For an unknown family.
+    """
     try:
         return HEIGHT_DISTRIBUTIONS[family].frozen(mean, sd, truncation)
     except KeyError:
@@ -431,7 +527,13 @@ class StandParams:
         return self.density / 1e4
 
     def cohorts(self):
-        """``[(weight, frozen height distribution, shape fractions), …]`` with weight > 0."""
+        """The stand's cohorts with trees.
+
+        Returns
+        -------
+        list of (float, scipy.stats.rv_frozen, array)
+            (weight, height distribution, shape fractions) of each cohort with weight > 0.
+        """
         out = []
         for weight, mean, sd, mix in (
             (1 - self.cohort2_fraction, self.height_mean, self.height_sd, self.shape_mix),
@@ -448,20 +550,63 @@ class StandParams:
         return out
 
     def favd_by_shape(self) -> np.ndarray:
-        """FAVD (m²/m³) of each shape, in :data:`forward.crowns.SHAPE_NAMES` order."""
+        """FAVD of each shape.
+
+        Returns
+        -------
+        array (m²/m³)
+            FAVD times the shape's ratio, in :data:`forward.crowns.SHAPE_NAMES` order.
+        """
         return self.favd * np.asarray(self.favd_ratio)
 
     def crown_length(self, height):
-        """Crown length (m) at tree height ``height`` (m)."""
+        """Crown length at tree heights.
+
+        Parameters
+        ----------
+        height : float or array (m)
+
+        Returns
+        -------
+        float or array (m)
+            ℓ·h.
+        """
         return self.crown_length_ratio * np.asarray(height, float)
 
     def crown_radius(self, height):
-        """Crown radius (m) at tree height ``height`` (m)."""
+        """Crown radius at tree heights.
+
+        Parameters
+        ----------
+        height : float or array (m)
+
+        Returns
+        -------
+        float or array (m)
+            r0 + r1·h.
+        """
         return self.crown_radius_intercept + self.crown_radius_slope * np.asarray(height, float)
 
     def with_values(self, **changes) -> "StandParams":
-        """A copy with fields replaced (validated again)."""
+        """A copy with fields replaced (validated again).
+
+        Parameters
+        ----------
+        **changes
+            StandParams fields.
+
+        Returns
+        -------
+        StandParams
+        """
         return replace(self, **changes)
 
     def as_dict(self) -> dict:
+        """The parameters as a dict.
+
+        Returns
+        -------
+        dict
+            Field name → value.
+        """
         return {f.name: getattr(self, f.name) for f in fields(self)}

@@ -40,9 +40,21 @@ NO_POINTS = (np.zeros(0), np.zeros(0), np.zeros((0, 0)))
 
 
 def chord_ends(ratio, s_lo, s_hi):
-    """Crown chord ends over tree height per row and node, a = 1 − c + c·s_lo (≥ 1e-12)
-    and b = 1 − c + c·s_hi, for crown length ratios c (n,) and the nodes' chord ends
-    as fractions of the crown length, s_lo and s_hi (J,)."""
+    """Crown chord ends over tree height per row and radial node.
+
+    Parameters
+    ----------
+    ratio : array (n,)
+        Crown length ratios c.
+    s_lo, s_hi : array (J,)
+        The nodes' chord ends as fractions of the crown length above its base.
+
+    Returns
+    -------
+    a, b : arrays (n, J)
+        a = max(1 − c + c·s_lo, 1e-12) and b = 1 − c + c·s_hi: a column at node j crosses
+        a crown of height h between a·h and b·h.
+    """
     c = ratio[:, None]
     return np.maximum(1.0 - c + c * s_lo, 1e-12), 1.0 - c + c * s_hi
 
@@ -174,7 +186,17 @@ def tree_depth(cohorts, points, crowns, z, *, backend="auto", tables=(None, None
 
 
 def groups(values):
-    """(G, J) indicator of equal values (G distinct), or None when all differ."""
+    """Indicator of equal values, for summing tables read at one place.
+
+    Parameters
+    ----------
+    values : array (J,)
+
+    Returns
+    -------
+    array (G, J) or None
+        Row g marks the nodes with the g-th distinct value; None when all differ.
+    """
     unique, inverse = np.unique(np.round(values, 12), return_inverse=True)
     if unique.size == values.size:
         return None

@@ -16,9 +16,20 @@ from .depth import NO_POINTS, _cohort_depth, _f64, _point_depth, tree_depth
 
 
 def clip_keeping_energy(canopy, rows):
-    """Zero the negative samples of ``rows`` (bool, n) and rescale the rest so that each
-    row keeps its sum: non-negative samples and exact energy (a change of the order of
-    the undershoot, far below the model error)."""
+    """Zero the negative samples of some rows and rescale the rest to keep each row's sum.
+
+    Parameters
+    ----------
+    canopy : array (n, bins)
+        Updated in place.
+    rows : array of bool (n,)
+
+    Returns
+    -------
+    array (n, bins)
+        ``canopy``: non-negative samples and exact energy in ``rows`` (a change of the order
+        of the undershoot, far below the model error).
+    """
     if rows.any():
         part = canopy[rows]
         positive = np.clip(part, 0.0, None)

@@ -126,7 +126,20 @@ class ExpectedWaveformModel:
         return len(self.parameter_names)
 
     def full_vector(self, params: StandParams, ground_elevation=0.0) -> np.ndarray:
-        """All of :data:`VECTOR_FIELDS` for one parameter object."""
+        """All of :data:`VECTOR_FIELDS` for one parameter object.
+
+        Parameters
+        ----------
+        params : StandParams
+        ground_elevation : float (m)
+            On the model's height axis.
+
+        Returns
+        -------
+        array (len(VECTOR_FIELDS),)
+            The stand's values, cohort 1's shape fractions and the conditioning fields at
+            their neutral values (:data:`.vectors.CONDITIONING_FIELDS`).
+        """
         values = params.as_dict()
         values["ground_elevation"] = ground_elevation
         values.update(CONDITIONING_FIELDS)
@@ -134,7 +147,25 @@ class ExpectedWaveformModel:
         return np.array([float(values[name]) for name in VECTOR_FIELDS])
 
     def vector(self, params: StandParams, ground_elevation=0.0) -> np.ndarray:
-        """The free-parameter vector of ``params`` (checks that its fixed settings match)."""
+        """The free-parameter vector of a parameter object.
+
+        Parameters
+        ----------
+        params : StandParams
+            Its fixed settings (height family, shape mixes unless free, FAVD ratios,
+            truncation) must be the template's.
+        ground_elevation : float (m)
+
+        Returns
+        -------
+        array (ndim,)
+            The :attr:`parameter_names` of :meth:`full_vector`.
+
+        Raises
+        ------
+        ValueError
+            Where a fixed setting differs from the template's.
+        """
         for name in (
             "height_family",
             "shape_mix",
@@ -161,12 +192,31 @@ class ExpectedWaveformModel:
         return full
 
     def full_vectors(self, theta) -> np.ndarray:
-        """Rows of parameter vectors completed with the template: (n, len(VECTOR_FIELDS)),
-        e.g. for :func:`forward.expected.vectors.params_from_vector`."""
+        """Rows of parameter vectors completed with the template.
+
+        Parameters
+        ----------
+        theta : array (n, ndim), StandParams or list of StandParams
+
+        Returns
+        -------
+        array (n, len(VECTOR_FIELDS))
+            E.g. for :func:`forward.expected.vectors.params_from_vector`.
+        """
         return self._full(theta)
 
     def valid(self, theta) -> np.ndarray:
-        """True for rows that are physical parameter vectors."""
+        """Which rows are physical parameter vectors.
+
+        Parameters
+        ----------
+        theta : array (n, ndim), StandParams or list of StandParams
+
+        Returns
+        -------
+        array of bool (n,)
+            :func:`.vectors.physical_rows` of the completed vectors.
+        """
         return self._valid(self._full(theta))
 
     def _valid(self, v):
@@ -178,7 +228,24 @@ class ExpectedWaveformModel:
         return self.evaluate(theta).samples
 
     def evaluate(self, theta) -> ExpectedWaveforms:
-        """Expected waveforms with their canopy/ground parts and a validity mask."""
+        """Expected waveforms with their canopy and ground parts and a validity mask.
+
+        Parameters
+        ----------
+        theta : array (n, ndim), StandParams or list of StandParams
+
+        Returns
+        -------
+        ExpectedWaveforms
+            Samples (apparent reflectance per bin), canopy and ground parts (n, n_bins),
+            E[P(0)] and the validity mask; invalid rows are zeros.
+
+        Notes
+        -----
+        E[W_j] = ρv·Σ_i K_{ji}·(E[P](z_i) − E[P](z_{i+1})) + ρg·E[P(0)]·Δz·p(z_j − g): the
+        layer returns through the layer kernel K, and the ground's pulse
+        (:mod:`forward.expected`, "Waveform").
+        """
         full = self._full(theta)
         valid = self._valid(full)
         full[~valid] = self._base
@@ -199,7 +266,20 @@ class ExpectedWaveformModel:
         return ExpectedWaveforms(samples, canopy, ground, gap0, valid)
 
     def gap(self, theta, z) -> np.ndarray:
-        """E[P(z)] at heights ``z`` (m above the ground), shape (n, len(z))."""
+        """The expected gap probability E[P(z)] above heights ``z``.
+
+        Parameters
+        ----------
+        theta : array (n, ndim), StandParams or list of StandParams
+        z : float or array (m)
+            Heights above the ground (clipped at 0).
+
+        Returns
+        -------
+        array (n, len(z))
+            exp(−λ·E[∫(1 − e^{−κuℓ}) dA]) of the trees, times the uniform understory's
+            transmission.
+        """
         full = self._full(theta)
         z = np.broadcast_to(np.asarray(z, float), (full.shape[0], np.size(z)))
         return self._gap(full, z)

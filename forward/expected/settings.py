@@ -67,6 +67,17 @@ class ExpectedWaveforms:
 
 
 def engine_oversampling(instrument):
-    """Fine layers per bin chosen by the explicit engine's default rule (layer ≤ σz/4)."""
+    """Fine layers per bin by the explicit engine's default rule.
+
+    Parameters
+    ----------
+    instrument : Instrument
+
+    Returns
+    -------
+    int
+        The least m with a layer Δz/m no thicker than σz/4 of the pulse (its ±1σ range
+        over 8).
+    """
     low, high = instrument.pulse.support(0.1587)
     return max(1, int(np.ceil(8.0 * instrument.bin_height / max(high - low, 1e-12))))

@@ -43,9 +43,26 @@ MAX_EXPONENT = 600.0
 
 
 def radial_rule(shape, nodes):
-    """Nodes ρ and area weights (summing to 1) of the disc quadrature for ``shape``.
+    """Nodes and area weights of the disc quadrature for a crown shape.
 
-    ``nodes`` is the count for cones; other shapes use :data:`RADIAL_NODES` of it.
+    Parameters
+    ----------
+    shape : str
+        A crown shape (:data:`forward.crowns.CROWN_SHAPES`).
+    nodes : int
+        The count for cones; other shapes use :data:`RADIAL_NODES` of it.
+
+    Returns
+    -------
+    rho : array
+        Nodes ρ = r/Rc.
+    weights : array
+        Area weights, summing to 1.
+
+    Notes
+    -----
+    Gauss–Legendre in ρ for cones and cylinders, in u = sqrt(1 − ρ²) for spheroids
+    (:data:`RADIAL_VARIABLE`); the area element is dA = π Rc² d(ρ²).
     """
     x, w = leggauss(RADIAL_NODES.get(shape, lambda n: n)(nodes))
     x, w = 0.5 * (x + 1.0), 0.5 * w
@@ -71,13 +88,25 @@ def _with_ghosts(f):
 
 
 def tail_integrals(f, matrix=None):
-    """Tail integrals per unit step, Q[i] = ∫_{h_i}^{h_last} f dh / step, of samples f.
+    """Tail integrals per unit step of samples on a uniform grid.
 
+    Parameters
+    ----------
+    f : array (..., nodes)
+    matrix : array (nodes, nodes), optional
+        :func:`tail_matrix` of the grid: one matrix product (fastest on short grids);
+        without, a cumulative sum.
+
+    Returns
+    -------
+    array (..., nodes)
+        Q[i] = ∫_{h_i}^{h_last} f dh / step.
+
+    Notes
+    -----
     Each cell is integrated by the four-point rule δ/24·(−f₋₁ + 13f₀ + 13f₁ − f₂) (fourth
     order); the ghost values beyond the grid ends are quadratic extrapolations, so a
-    density that jumps at a grid end costs nothing. With ``matrix`` (the
-    :func:`tail_matrix` of the grid) this is one matrix product, the fastest way on short
-    grids; without, a cumulative sum.
+    density that jumps at a grid end costs nothing.
     """
     if matrix is not None:
         return f @ matrix
@@ -87,16 +116,33 @@ def tail_integrals(f, matrix=None):
 
 
 def tail_matrix(nodes):
-    """Matrix T (nodes, nodes) with ``f @ T`` = :func:`tail_integrals` of f: every step of
-    the rule is linear in f."""
+    """The matrix T (nodes, nodes) with ``f @ T`` = :func:`tail_integrals` of f.
+
+    Parameters
+    ----------
+    nodes : int
+
+    Returns
+    -------
+    array (nodes, nodes)
+        Every step of the rule is linear in f.
+    """
     return tail_integrals(np.eye(nodes))
 
 
 def decay_grid(rate, step, count):
-    """exp(−rate·k·step) for k < count, shape (*rate.shape, count), by repeated squaring.
+    """exp(−rate·k·step) for k < count, by repeated squaring.
 
-    ``rate`` is (n, p) and ``step`` (n,); only log2(count) multiplications of growing
-    slices, no exponential per grid point.
+    Parameters
+    ----------
+    rate : array (n, p) (1/m)
+    step : array (n,) (m)
+    count : int
+
+    Returns
+    -------
+    array (n, p, count)
+        Only log2(count) multiplications of growing slices, no exponential per grid point.
     """
     out = np.empty((*rate.shape, count))
     out[..., 0] = 1.0
@@ -132,13 +178,25 @@ WEIGHT_SERIES = LAGRANGE_CUBIC @ np.array(
 
 
 def cell_weights(x):
-    """Weights (…, 4) of g(−1), g(0), g(1), g(2) in ∫_0^1 g(s)·e^{−x s} ds, g cubic.
+    """Weights of an exponentially fitted four-point cell rule.
 
-    The exponential is integrated exactly against the cubic through the four values (an
-    exponentially fitted four-point rule): at x = 0 the weights are (−1, 13, 13, −1)/24,
-    and they stay bounded for any x ≥ 0, where the plain rule applied to g·e^{−xs} blows
-    up once x ≫ 1. Below x = 0.5 the weights are their Taylor series (:data:`WEIGHT_SERIES`);
-    above, the moments follow the recurrence M_n = (n·M_{n−1} − e^{−x})/x.
+    Parameters
+    ----------
+    x : float or array
+        rate × step ≥ 0.
+
+    Returns
+    -------
+    array (..., 4)
+        Weights of g(−1), g(0), g(1), g(2) in ∫_0^1 g(s)·e^{−x s} ds, g cubic.
+
+    Notes
+    -----
+    The exponential is integrated exactly against the cubic through the four values: at
+    x = 0 the weights are (−1, 13, 13, −1)/24, and they stay bounded for any x ≥ 0, where
+    the plain rule applied to g·e^{−xs} blows up once x ≫ 1. Below x = 0.5 the weights
+    are their Taylor series (:data:`WEIGHT_SERIES`); above, the moments follow the
+    recurrence M_n = (n·M_{n−1} − e^{−x})/x.
     """
     x = np.asarray(x, float)[..., None]
     series = np.full((*x.shape[:-1], 4), WEIGHT_SERIES[:, -1])
@@ -165,8 +223,18 @@ def _series(m, x):
 
 @jit
 def cell_weights_at(x):
-    """The four weights of :func:`cell_weights` at one x = rate·step, as scalars (the
-    kernels' twin): Taylor series below x = 0.5, moments by recurrence above."""
+    """:func:`cell_weights` at one x, as four scalars (the kernels' twin).
+
+    Parameters
+    ----------
+    x : float
+        rate × step ≥ 0.
+
+    Returns
+    -------
+    (float, float, float, float)
+        Taylor series below x = 0.5, moments by recurrence above.
+    """
     if x < 0.5:
         return _series(0, x), _series(1, x), _series(2, x), _series(3, x)
     e = np.exp(-x)
@@ -231,9 +299,22 @@ def discounted_tails(g, rate, step, tails=None):
 
 @jit
 def discounted_tail_row(g, rate, step, out):
-    """:func:`discounted_tails` of one row's samples ``g`` (nodes ≥ 4) at one ``rate``
-    (1/m, already capped) into ``out``: cells by :func:`cell_weights_at`, then the
-    backward recurrence S_i = e^{−rate·step}·S_{i+1} + C_i."""
+    """:func:`discounted_tails` of one row at one rate, into ``out`` (the kernels' twin).
+
+    Parameters
+    ----------
+    g : array (nodes ≥ 4,)
+    rate : float (1/m)
+        Already capped (:data:`MAX_EXPONENT`).
+    step : float (m)
+    out : array (nodes,)
+        Overwritten with S_i.
+
+    Notes
+    -----
+    Cells by :func:`cell_weights_at`, then the backward recurrence
+    S_i = e^{−rate·step}·S_{i+1} + C_i.
+    """
     nodes = g.size
     x = rate * step
     w0, w1, w2, w3 = cell_weights_at(x)
@@ -257,6 +338,12 @@ def hermite_read(values, slopes, rows, position, nodes):
         Flat index of each read's table row.
     position : array
         Grid positions (0 = first node); clipped to the grid. Overwritten.
+    nodes : int
+
+    Returns
+    -------
+    array
+        y0 + t·d0 + t²·(3Δ − 2d0 − d1) + t³·(d0 + d1 − 2Δ) in each read's cell.
     """
     np.clip(position, 0.0, nodes - 1.0, out=position)
     i = position.astype(np.intp)
@@ -281,7 +368,18 @@ def hermite_read(values, slopes, rows, position, nodes):
 
 @jit
 def hermite_at(values, slopes, p):
-    """:func:`hermite_read` of one table at one grid position 0 ≤ p ≤ nodes − 1."""
+    """:func:`hermite_read` of one table at one position (the kernels' twin).
+
+    Parameters
+    ----------
+    values, slopes : array (nodes,)
+    p : float
+        Grid position, 0 ≤ p ≤ nodes − 1.
+
+    Returns
+    -------
+    float
+    """
     i = min(int(p), values.size - 2)
     t = p - i
     y0, d0, d1 = values[i], slopes[i], slopes[i + 1]
@@ -301,10 +399,21 @@ def _catmull_rom_weights(t):
 
 
 def catmull_rom(values, z, step, beyond=0.0):
-    """Catmull–Rom interpolation of ``values`` (n, m) on grids 0, step, … at z (n, e).
+    """Catmull–Rom interpolation of values on uniform grids.
 
-    Below the first node the values are extrapolated linearly; beyond the last node they
-    are taken as ``beyond`` (no crown above the tallest tree: zero depth, unit gap).
+    Parameters
+    ----------
+    values : array (n, m)
+        On grids 0, step, … per row.
+    z : array (n, e)
+    step : array (n,)
+    beyond : float
+        The value beyond the last node (no crown above the tallest tree: zero depth).
+
+    Returns
+    -------
+    array (n, e)
+        Below the first node the values are extrapolated linearly.
     """
     n, m = values.shape
     y = np.full((n, m + 3), float(beyond))
@@ -321,10 +430,17 @@ def catmull_rom(values, z, step, beyond=0.0):
 def catmull_rom_matrix(nodes, per_cell):
     """Catmull–Rom interpolation as a matrix, for ``per_cell`` points per grid cell.
 
-    Returns M (nodes, points): the interpolated values ``y @ M`` at the points
-    k/per_cell, k = 0 … (nodes − 1)·per_cell, of values y (…, nodes) on the grid 0, 1, …;
-    below the first node the values are extrapolated linearly and the value beyond the
-    last node is 0, as in :func:`catmull_rom` with ``beyond=0``.
+    Parameters
+    ----------
+    nodes : int
+    per_cell : int
+
+    Returns
+    -------
+    array (nodes, points)
+        M with ``y @ M`` the interpolated values at k/per_cell, k = 0 … (nodes − 1)·per_cell,
+        of values y on the grid 0, 1, …; below the first node they are extrapolated linearly
+        and the value beyond the last node is 0, as :func:`catmull_rom` with ``beyond=0``.
     """
     cells = nodes - 1
     # padded values: y(−1) = 2y(0) − y(1), y(0 … nodes − 1), y(nodes) = 0
@@ -342,9 +458,16 @@ def catmull_rom_matrix(nodes, per_cell):
 
 
 def layer_operator(layers, oversampling, q_min, taps):
-    """Matrix from the energies of ``layers`` fine layers, the first starting on a bin
-    edge, to waveform samples: the layer kernel ``(q_min, taps)`` of
-    :func:`forward.pulse.layer_kernel` with ``oversampling`` layers per bin.
+    """The matrix from fine-layer energies to waveform samples.
+
+    Parameters
+    ----------
+    layers : int
+        Fine layers, the first starting on a bin edge.
+    oversampling : int
+        Layers per bin.
+    q_min, taps
+        The layer kernel of :func:`forward.pulse.layer_kernel`.
 
     Returns
     -------
@@ -361,11 +484,18 @@ def layer_operator(layers, oversampling, q_min, taps):
 
 
 def grid_operator(nodes, per_cell, oversampling, q_min, taps):
-    """Matrix from E[P] − 1 on a depth grid to waveform samples, and its first bin.
+    """The matrix from E[P] − 1 on a depth grid to waveform samples, and its first bin.
 
-    The grid has ``nodes`` points ``per_cell`` fine layers apart, the first on a bin edge;
-    the samples are those of :func:`catmull_rom_matrix` interpolation to every layer edge,
-    layer energies P(top) − P(bottom), and :func:`layer_operator`.
+    Parameters
+    ----------
+    nodes : int
+        Points of the depth grid, the first on a bin edge.
+    per_cell : int
+        Fine layers per grid cell.
+    oversampling : int
+        Fine layers per bin.
+    q_min, taps
+        The layer kernel of :func:`forward.pulse.layer_kernel`.
 
     Returns
     -------
@@ -376,6 +506,11 @@ def grid_operator(nodes, per_cell, oversampling, q_min, taps):
         The interpolation matrix (values at the layer edges).
     layers_to_samples : array (layers, bins)
         The :func:`layer_operator` of the grid's layers.
+
+    Notes
+    -----
+    :func:`catmull_rom_matrix` interpolation to every layer edge, layer energies
+    P(top) − P(bottom), then :func:`layer_operator`.
     """
     interp = catmull_rom_matrix(nodes, per_cell)
     energy = interp[:, 1:] - interp[:, :-1]  # (nodes, layers)

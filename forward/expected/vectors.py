@@ -114,7 +114,7 @@ _LOWER, _CLOSED, _UPPER = _bounds()
 
 
 def physical_rows(v, family, truncation):
-    """True for full vectors ``v`` (n, len(VECTOR_FIELDS)) that describe a physical stand.
+    """Which full vectors describe a physical stand.
 
     Parameters
     ----------
@@ -125,6 +125,12 @@ def physical_rows(v, family, truncation):
         Height family of both cohorts.
     truncation : float (sd units)
         Truncation of the ``truncnorm`` family.
+
+    Returns
+    -------
+    array of bool (n,)
+        Finite values within each field's bounds, shape fractions summing to 1, height
+        moments the family supports (cohort 2's only where it has trees).
     """
     finite = np.isfinite(v)
     uncapped = v[:, _I["height_cap"]] == np.inf
@@ -145,9 +151,25 @@ def physical_rows(v, family, truncation):
 
 
 def params_from_vector(full, template: StandParams) -> tuple[StandParams, float]:
-    """The stand and the ground elevation (m) of one full vector (len(VECTOR_FIELDS)),
-    with the template's fixed settings (height family, truncation, FAVD ratios): the
-    inverse of :meth:`forward.expected.ExpectedWaveformModel.full_vector`."""
+    """The stand and the ground elevation of one full vector.
+
+    Parameters
+    ----------
+    full : array (len(VECTOR_FIELDS),)
+    template : StandParams
+        Its fixed settings (height family, truncation, FAVD ratios) are kept.
+
+    Returns
+    -------
+    params : StandParams
+    ground_elevation : float (m)
+        The inverse of :meth:`forward.expected.ExpectedWaveformModel.full_vector`.
+
+    Raises
+    ------
+    ValueError
+        For a vector conditioned on its tallest tree, which has no stem-map counterpart.
+    """
     full = np.asarray(full, float)
     if full.shape != (len(VECTOR_FIELDS),):
         raise ValueError(f"a full vector has {len(VECTOR_FIELDS)} values, got shape {full.shape}")
