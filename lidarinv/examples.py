@@ -1,9 +1,12 @@
-"""Synthetic shots for examples, tests and recovery studies.
+"""Built-in example shots: synthetic observations of example stands.
 
-A shot is drawn from an **explicit** random stand (``forward.realise``) run through the
+``lidarinv invert --example NAME`` inverts the recipe NAME of :data:`SYNTHETIC_SHOTS`. A
+shot is drawn from an **explicit** random stand (``forward.realise``) run through the
 explicit 3-D engine, then through the observation model, so that inverting it with the
-expected-waveform model is not an inverse crime. ``explicit=False`` gives the inverse
-crime (the expected waveform itself) for comparison.
+expected-waveform model is not an inverse crime; ``explicit=False`` gives the inverse
+crime (the expected waveform itself) for comparison. The stands are those of
+:data:`forward.examples.EXAMPLE_STANDS`; the tests and studies draw their synthetic shots
+here too.
 """
 
 from dataclasses import dataclass
@@ -12,13 +15,14 @@ import numpy as np
 
 from forward import derived
 from forward.engine import WaveformSimulator
+from forward.examples import EXAMPLE_STANDS
 from forward.expected import ExpectedWaveformModel
 from forward.instrument import instrument_preset
 from forward.realise import realise, scene_extras
 from forward.stand_params import StandParams
+from lidarinv.inference.model.stand import TOP_SDS
+from lidarinv.inference.model.tallest_stem import tallest_stem_within
 from lidarinv.observe.simulate import observe
-
-from .stand_mapping import TALLEST_STEM_RADIUS_SIGMAS, TOP_SDS
 
 
 @dataclass(frozen=True)
@@ -43,28 +47,27 @@ class ShotRecipe:
     instrument: str = "gedi"
 
 
-#: Built-in synthetic shots.
-SYNTHETIC_SHOTS = {
-    "gedi-mixed": ShotRecipe(
-        StandParams(
-            density=600.0,
-            height_mean=16.0,
-            height_sd=3.0,
-            height_family="truncnorm",
-            height_truncation=TOP_SDS,
-            shape_mix={"cone": 0.6, "ellipsoid": 0.4},
-            favd=0.6,
-            understory_height=1.0,
-            understory_lai=0.3,
-            canopy_reflectance=0.45,
-            ground_reflectance=0.3,
-        )
-    ),
-}
+#: Built-in synthetic shots: GEDI-like observations of :data:`forward.examples.EXAMPLE_STANDS`.
+SYNTHETIC_SHOTS = {name: ShotRecipe(params) for name, params in EXAMPLE_STANDS.items()}
 
 
 def true_values(params: StandParams, gain: float, baseline: float, noise_sigma: float) -> dict:
-    """Inversion-parameter values of a stand (the truth of a synthetic shot)."""
+    """Inversion-parameter values of a stand (the truth of a synthetic shot).
+
+    Parameters
+    ----------
+    params : StandParams
+        A single-cohort stand of cones and ellipsoids.
+    gain : float (DN per unit apparent reflectance)
+    baseline, noise_sigma : float (DN)
+
+    Returns
+    -------
+    dict
+        The default parameterisation's values (cover, PAI, top height, …, the gain per
+        unit ground reflectance, ρv/ρg) and derived quantities (mean height, LAI, crown
+        volume) of :mod:`forward.derived`.
+    """
     mix = dict(zip(("cone", "ellipsoid"), params.shape_mix[:2]))
     return {
         "cover": derived.canopy_cover(params),
@@ -86,30 +89,33 @@ def true_values(params: StandParams, gain: float, baseline: float, noise_sigma: 
 
 
 def tallest_within(stand, centre, footprint_sigma_m) -> float:
-    """Height (m) of the tallest stem within the footprint's 1/e² radius
-    (:data:`.stand_mapping.TALLEST_STEM_RADIUS_SIGMAS`·σf) of ``centre``; 0 if none."""
+    """Height (m) of the tallest stem within the footprint's 1/e² radius of ``centre``; 0
+    if none (:func:`lidarinv.inference.model.tallest_stem.tallest_stem_within`)."""
     return tallest_stem_within(stand, centre, footprint_sigma_m)[0]
-
-
-def tallest_stem_within(stand, centre, footprint_sigma_m) -> tuple[float, float]:
-    """Height (m) of the tallest stem within the footprint's 1/e² radius R of ``centre``
-    and its squared distance from it over R²; (0, NaN) if none."""
-    radius = TALLEST_STEM_RADIUS_SIGMAS * footprint_sigma_m
-    r2 = ((stand.x - centre[0]) ** 2 + (stand.y - centre[1]) ** 2) / radius**2
-    inside = np.flatnonzero(r2 <= 1.0)
-    if inside.size == 0:
-        return 0.0, np.nan
-    tallest = inside[np.argmax(stand.height[inside])]
-    return float(stand.height[tallest]), float(r2[tallest])
 
 
 def synthetic_shot(
     recipe: ShotRecipe, rng: np.random.Generator, explicit=True, shot_id=0, heights=None
 ):
-    """One noisy observation of the recipe's stand (heights m above ground).
+    """One noisy observation of a recipe's stand.
 
-    With ``explicit`` the stand is one random realisation on a plot 3 footprint diameters
-    wide, seen at its centre; otherwise the expected waveform is observed.
+    Parameters
+    ----------
+    recipe : ShotRecipe
+    rng : numpy.random.Generator
+    explicit : bool
+        Observe one random realisation of the stand on a plot 3 footprint diameters wide,
+        seen at its centre; otherwise the expected waveform.
+    shot_id : int or str
+    heights : array (m), optional
+        Bin heights above the ground; by default from 12 m below the ground to 18 m above
+        the top height, in the instrument's bins.
+
+    Returns
+    -------
+    lidarinv.observe.observation.Observation
+        With the true parameter values (:func:`true_values`), the ground elevation (0) and
+        the footprint's tallest stem (explicit stands only) in ``truth``.
     """
     p = recipe.params
     instrument = instrument_preset(recipe.instrument)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize, rosen, rosen_der
 
-from lidarinv.inference.lockstep import minimize_in_lockstep
+from lidarinv.inference.sampling.batched_minimize import minimize_in_lockstep
 
 
 class Rosenbrock:

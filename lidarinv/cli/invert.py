@@ -54,7 +54,7 @@ def _settings(args):
 
 def _selected(args, rng):
     if args.example is not None:
-        from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
+        from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 
         if args.example not in SYNTHETIC_SHOTS:
             raise ValueError(f"unknown example {args.example!r}; known: {list(SYNTHETIC_SHOTS)}")

@@ -13,10 +13,10 @@ holds one. The difference enters the likelihood as an extra variance per bin, a 
     pull the parameters.
 ``realisations``
     A covariance between bins simulated from explicit realisations around a pilot MAP
-    (:mod:`.realisations`); the pilot uses ``observed``.
+    (:mod:`lidarinv.inference.realisations`); the pilot uses ``observed``.
 
-The helpers :func:`footprint_area` and :func:`gap_cv2` describe the spread of a Poisson
-stand seen through a Gaussian footprint (``studies/discrepancy.py``).
+The spread of a Poisson stand seen through a Gaussian footprint is
+:func:`forward.poisson_stand.footprint_gap_cv2` (``studies/discrepancy.py``).
 """
 
 import numpy as np
@@ -24,15 +24,41 @@ from scipy.ndimage import gaussian_filter1d
 
 
 def model_variance(scale, gain, signal) -> np.ndarray:
-    """(η·a·W)² (DN²) for rows of ``signal`` W (n, bins) and ``gain`` a (n,)."""
+    """The discrepancy variance of each row's own model.
+
+    Parameters
+    ----------
+    scale : float
+        η.
+    gain : array (n,)
+    signal : array (n, bins)
+
+    Returns
+    -------
+    array (n, bins) (DN²)
+        (η·a·W)².
+    """
     return (scale * np.asarray(gain)[:, None] * signal) ** 2
 
 
 def observed_variance(samples, baseline, smooth_bins, scale) -> np.ndarray:
-    """(η·ŝ)² (DN², one per bin) from the observed ``samples`` (DN).
+    """The discrepancy variance fixed by the observed signal.
 
-    ŝ is the observation less its noise mean ``baseline``, smoothed by a Gaussian of
-    ``smooth_bins`` and clipped at zero.
+    Parameters
+    ----------
+    samples : array (DN)
+        The observation.
+    baseline : float (DN)
+        Its noise mean.
+    smooth_bins : float
+        Sd (bins) of the Gaussian smoothing.
+    scale : float
+        η.
+
+    Returns
+    -------
+    array (bins,) (DN²)
+        (η·ŝ)², ŝ the samples less the noise mean, smoothed and clipped at zero.
     """
     signal = gaussian_filter1d(np.asarray(samples, float) - baseline, max(smooth_bins, 0.5))
     return (scale * np.clip(signal, 0.0, None)) ** 2
@@ -49,15 +75,3 @@ DISCREPANCY_MODELS = {
 
 #: The discrepancy model that replaces the per-bin variance by a simulated covariance.
 SIMULATED = "realisations"
-
-
-def footprint_area(footprint_sigma_m) -> float:
-    """Effective area (m²) (∫w)²/∫w² of a Gaussian footprint of σ ``footprint_sigma_m``."""
-    return 4.0 * np.pi * float(footprint_sigma_m) ** 2
-
-
-def gap_cv2(gap0, crown_area, area) -> np.ndarray:
-    """Squared relative spread of the gap fraction seen by a footprint of ``area`` (m²)
-    over crowns of mean area ``crown_area`` (m²), at expected gap ``gap0``."""
-    gap0 = np.clip(gap0, 1e-12, 1.0)
-    return (1.0 - gap0) / gap0 * crown_area / area

@@ -4,79 +4,149 @@ Per the physics conventions, y_j = b + a·W_j + ε_j with ε_j ~ N(0, σn² + g�
 model-discrepancy term (:mod:`.discrepancy`) adds to the variance, for the difference
 between the one random arrangement of trees in a footprint and the expected stand.
 Samples set to the floor are censored, log Φ((floor − μ)/s); samples at the digitiser
-maximum are censored from above, log Φ((μ − max)/s).
+maximum are censored from above, log Φ((μ − max)/s). The exactly recorded bins are
+summed by a compiled kernel (:func:`gaussian_exact`): the sampler asks for a few rows at
+a time, where numpy's per-call cost, not arithmetic, would set the price.
 """
 
-from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy.special import log_ndtr
 
-from lidarinv.observe.observation import Observation
+from forward.backends import jit
 
-from . import compiled
+from ..shot import WindowData
+from .covariance import Rotation, covariance_obstacle
+from .marginal import _HALF_LOG_2PI, GainMarginal, _unit, gain_marginal_obstacle, linear_fit
 
-_LOG_2PI = np.log(2.0 * np.pi)
 
+class ShotLikelihood:
+    """The likelihood of one shot's window, for rows of model waveforms.
 
-@dataclass(frozen=True)
-class WindowData:
-    """The part of an observation that enters the likelihood.
-
-    Attributes
+    Parameters
     ----------
-    axis : array (m)
-        Bin centres on the observation's axis (ascending).
-    samples : array (DN)
-    censored : array of bool
-        Samples at the noise floor (true value ≤ ``floor``).
-    saturated : array of bool
-        Samples at the digitiser maximum (true value ≥ ``saturation``).
-    floor, saturation : float (DN)
+    data : WindowData
+    shot_factor : float (DN)
+        g, shot-noise variance per unit signal.
+    discrepancy : float
+        η, model-discrepancy sd as a fraction of each row's model signal, where no
+        discrepancy is fixed for the shot.
+    fixed_discrepancy : array (bins,) or (bins, bins) (DN²), optional
+        A discrepancy fixed for the shot, used instead of (η·a·W)²: a variance per bin
+        (:mod:`.discrepancy`) or a covariance between bins (``lidarinv.inference.
+        realisations``), taken in its eigenbasis (:mod:`.covariance`).
+    gain_prior : prior, optional
+        If given, the gain is integrated out against it (:mod:`.marginal`); that needs a
+        variance independent of the gain and no censored or saturated bins, and a
+        ValueError says which is missing.
+
+    Notes
+    -----
+    log L = Σ_j log N(y_j; b + a·W_j, σn² + g·a·W_j + (η·a·W_j)² + v_j) over exact bins,
+    with censored and saturated bins as in :func:`row_log_likelihood`; with a covariance
+    C = QΛQᵀ, the supported bins rotated by Qᵀ carry the variances σn² + Λ.
     """
 
-    axis: np.ndarray
-    samples: np.ndarray
-    censored: np.ndarray
-    saturated: np.ndarray
-    floor: float = np.nan
-    saturation: float = np.nan
+    def __init__(self, data, shot_factor=0.0, discrepancy=0.0, fixed_discrepancy=None,
+                 gain_prior=None):  # fmt: skip
+        self.data = data
+        self.shot_factor, self.discrepancy = float(shot_factor), float(discrepancy)
+        self.gain_prior = gain_prior
+        self.rotation = None
+        if fixed_discrepancy is not None:
+            fixed_discrepancy = np.asarray(fixed_discrepancy, float)
+            if fixed_discrepancy.ndim == 2:
+                obstacle = covariance_obstacle(data, self.shot_factor)
+                if obstacle is not None:
+                    raise ValueError(f"a discrepancy covariance cannot be used: {obstacle}")
+                self.rotation = Rotation.of(fixed_discrepancy, data)
+            else:
+                good = np.all(np.isfinite(fixed_discrepancy) & (fixed_discrepancy >= 0))
+                if fixed_discrepancy.shape != data.axis.shape or not good:
+                    raise ValueError("fixed_discrepancy must be finite, ≥ 0 and one per window bin")
+        self.fixed_discrepancy = fixed_discrepancy
+        if self.rotation is not None:
+            self._fixed_variance = self.rotation.variances
+        elif fixed_discrepancy is None:
+            self._fixed_variance = np.zeros(data.axis.size)
+        else:
+            self._fixed_variance = fixed_discrepancy
+        # η of a discrepancy proportional to each row's model: none when the observation
+        # fixes the discrepancy
+        self.discrepancy_scale = self.discrepancy if fixed_discrepancy is None else 0.0
+        self.gain_marginal = None
+        if gain_prior is not None:
+            obstacle = gain_marginal_obstacle(data, self.shot_factor, self.discrepancy_scale)
+            if obstacle is not None:
+                raise ValueError(f"the gain cannot be marginalised: {obstacle}")
+            self.gain_marginal = GainMarginal(gain_prior)
 
-    @classmethod
-    def from_observation(cls, obs: Observation, lo: int, hi: int) -> "WindowData":
-        """Bins ``lo:hi`` of an observation."""
-        if hi - lo < 3:
-            raise ValueError(f"shot {obs.shot_id}: the inversion window holds {hi - lo} bins")
-        part = slice(lo, hi)
-        return cls(
-            axis=obs.axis[part].copy(),
-            samples=obs.samples[part].copy(),
-            censored=obs.censored_mask[part].copy(),
-            saturated=obs.saturated_mask[part].copy(),
-            floor=float(obs.floor),
-            saturation=float(obs.saturation),
+    def with_fixed_discrepancy(self, fixed_discrepancy) -> "ShotLikelihood":
+        """The same likelihood with another fixed discrepancy.
+
+        Parameters
+        ----------
+        fixed_discrepancy : array (bins,) or (bins, bins) (DN²)
+            A variance per bin or a covariance between bins.
+
+        Returns
+        -------
+        ShotLikelihood
+        """
+        return ShotLikelihood(
+            self.data, self.shot_factor, self.discrepancy, fixed_discrepancy, self.gain_prior
         )
 
-    @property
-    def exact(self) -> np.ndarray:
-        return ~(self.censored | self.saturated)
+    def log_likelihood(self, signal, values):
+        """Log-likelihood of rows of model waveforms.
 
+        Parameters
+        ----------
+        signal : array (n, bins)
+            Model waveforms W.
+        values : dict
+            ``baseline`` and ``noise_sigma`` (DN), and ``gain`` unless it is integrated
+            out, (n,) each.
 
-def log_likelihood(data: WindowData, mean, variance) -> np.ndarray:
-    """Log-likelihood of each row of model ``mean`` and ``variance`` (n, n_bins) (DN, DN²)."""
-    sd = np.sqrt(variance)
-    total = np.zeros(mean.shape[0])
-    exact = data.exact
-    if exact.any():
-        r = (data.samples[exact] - mean[:, exact]) / sd[:, exact]
-        total -= 0.5 * np.sum(r * r + _LOG_2PI, axis=1) + np.sum(np.log(sd[:, exact]), axis=1)
-    if data.censored.any():
-        c = data.censored
-        total += np.sum(log_ndtr((data.floor - mean[:, c]) / sd[:, c]), axis=1)
-    if data.saturated.any():
-        s = data.saturated
-        total += np.sum(log_ndtr((mean[:, s] - data.saturation) / sd[:, s]), axis=1)
-    return total
+        Returns
+        -------
+        log_likelihood : array (n,)
+        gain_fit : array (n, 4) or None
+            Where the gain is integrated out, each row's :func:`.marginal.linear_fit`.
+        """
+        data, unit = self.data, None
+        if self.rotation is not None:
+            signal = self.rotation.rotate(signal)
+            data, unit = self.rotation.data, self.rotation.unit
+        if self.gain_marginal is None:
+            like = row_log_likelihood(
+                data, signal, values["gain"], values["baseline"], values["noise_sigma"],
+                self.shot_factor, self.discrepancy_scale, self._fixed_variance, unit,
+            )  # fmt: skip
+            return like, None
+        fit = linear_fit(
+            signal, values["baseline"], values["noise_sigma"], self._fixed_variance, data, unit
+        )
+        return self.gain_marginal.log_likelihood(fit), fit
+
+    def draw_gain(self, fit, rng) -> np.ndarray:
+        """Gains drawn from p(a | θ, y), one per row.
+
+        Parameters
+        ----------
+        fit : array (n, 4)
+            :meth:`log_likelihood`'s ``gain_fit``; NaN rows give NaN.
+        rng : numpy.random.Generator
+
+        Returns
+        -------
+        array (n,) (DN per unit reflectance)
+        """
+        good = np.all(np.isfinite(fit), axis=1)
+        gain = np.full(fit.shape[0], np.nan)
+        gain[good] = self.gain_marginal.draw(fit[good], rng)
+        return gain
 
 
 def row_log_likelihood(
@@ -92,14 +162,36 @@ def row_log_likelihood(
 ) -> np.ndarray:
     """Log-likelihood of model waveforms ``signal`` W (n, bins), the fast path.
 
-    The same value as :func:`log_likelihood` of :func:`model_moments`, with the extra
-    variance (η·a·W)² (η = ``discrepancy_scale``) plus ``fixed_variance`` (bins,) (DN²):
-    compiled over the exactly recorded bins (:mod:`.compiled`), numpy over the censored
-    and saturated ones. ``unit`` is the baseline's pattern in a rotated basis
-    (:mod:`.correlated`, where every bin is exact).
+    Parameters
+    ----------
+    data : WindowData
+        The window's samples (DN) and which are censored or saturated.
+    signal : array (n, bins)
+        Model waveforms W (apparent reflectance per bin).
+    gain, baseline, noise_sigma : array (n,) (DN per unit reflectance, DN, DN)
+    shot_factor : float (DN)
+        g, shot-noise variance per unit signal.
+    discrepancy_scale : float
+        η of a discrepancy proportional to each row's model.
+    fixed_variance : array (bins,) (DN²), optional
+        A variance fixed for the shot (e.g. a discrepancy's, :mod:`.discrepancy`).
+    unit : array (bins,), optional
+        The baseline's pattern in a rotated basis (:mod:`.covariance`, where every bin
+        is exact); ones by default.
+
+    Returns
+    -------
+    array (n,)
+
+    Notes
+    -----
+    y_j ~ N(b·1_j + a·W_j, σn² + g·a·W_j + (η·a·W_j)² + v_j) over the exactly recorded
+    bins (compiled, :func:`gaussian_exact`), censored bins log Φ((floor − μ)/s) and
+    saturated ones log Φ((μ − max)/s) (numpy). ``tests/testing.py`` holds the slow
+    reference it is checked against.
     """
     fixed = np.zeros(data.axis.size) if fixed_variance is None else fixed_variance
-    total = compiled.gaussian_exact(
+    total = gaussian_exact(
         signal, gain, baseline, noise_sigma, shot_factor, discrepancy_scale, fixed, data, unit
     )
     limited = data.censored | data.saturated
@@ -115,12 +207,77 @@ def row_log_likelihood(
 
 
 def model_moments(signal, gain, baseline, noise_sigma, shot_factor=0.0, extra_variance=0.0):
-    """Mean and variance (DN, DN²) of the samples for model waveforms ``signal`` (n, bins).
+    """Mean and variance of the samples for model waveforms.
 
-    ``signal`` is the noise-free waveform W (apparent reflectance per bin); ``gain``,
-    ``baseline`` and ``noise_sigma`` are (n,) arrays; ``extra_variance`` (DN², scalar or
-    (n, bins)) is added, e.g. a model discrepancy (:mod:`.discrepancy`).
+    Parameters
+    ----------
+    signal : array (n, bins)
+        The noise-free waveform W (apparent reflectance per bin).
+    gain, baseline, noise_sigma : array (n,) (DN per unit reflectance, DN, DN)
+    shot_factor : float (DN)
+        g.
+    extra_variance : float or array (n, bins) (DN²)
+        Added, e.g. a model discrepancy (:mod:`.discrepancy`).
+
+    Returns
+    -------
+    mean, variance : arrays (n, bins) (DN, DN²)
+        b + a·W and σn² + g·a·W + extra (physics conventions, "Observation model").
     """
     scaled = np.asarray(gain)[:, None] * signal
     variance = np.asarray(noise_sigma)[:, None] ** 2 + shot_factor * scaled + extra_variance
     return np.asarray(baseline)[:, None] + scaled, variance
+
+
+@jit
+def _gaussian_exact(signal, gain, baseline, noise_sigma, shot_factor, scale, fixed, y, exact, unit):
+    n, bins = signal.shape
+    out = np.zeros(n)
+    for r in range(n):
+        a, b, s2 = gain[r], baseline[r], noise_sigma[r] ** 2
+        total = 0.0
+        for j in range(bins):
+            if not exact[j]:
+                continue
+            w = a * signal[r, j]
+            variance = s2 + shot_factor * w + fixed[j] + (scale * w) ** 2
+            resid = y[j] - b * unit[j] - w
+            total -= 0.5 * (resid * resid / variance + math.log(variance)) + _HALF_LOG_2PI
+        out[r] = total
+    return out
+
+
+def gaussian_exact(signal, gain, baseline, noise_sigma, shot_factor, scale, fixed, data, unit=None):
+    """Log-likelihood of the exactly recorded bins (compiled).
+
+    Parameters
+    ----------
+    signal : array (n, bins)
+    gain, baseline, noise_sigma : array (n,)
+    shot_factor : float (DN)
+    scale : float
+        η of a discrepancy proportional to the model (0 for none).
+    fixed : array (bins,) (DN²)
+        A discrepancy variance fixed for the shot (zeros for none).
+    data : WindowData
+    unit : array (bins,), optional
+        The baseline's pattern, ones by default; in a rotated basis (:mod:`.covariance`)
+        the rotated ones.
+
+    Returns
+    -------
+    array (n,)
+        Σ_j over exact bins of log N(y_j; b·unit_j + a·W_j, σn² + g·a·W_j + v_j + (η·a·W_j)²).
+    """
+    return _gaussian_exact(
+        np.ascontiguousarray(signal, dtype=np.float64),
+        np.ascontiguousarray(gain, dtype=np.float64),
+        np.ascontiguousarray(baseline, dtype=np.float64),
+        np.ascontiguousarray(noise_sigma, dtype=np.float64),
+        float(shot_factor),
+        float(scale),
+        np.ascontiguousarray(fixed, dtype=np.float64),
+        np.ascontiguousarray(data.samples, dtype=np.float64),
+        np.ascontiguousarray(data.exact),
+        _unit(unit, data),
+    )

@@ -11,12 +11,15 @@ but like a Gaussian under ``probit``.
 """
 
 import inspect
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import logit, ndtr, ndtri
 
-from . import compiled
+from forward.backends import jit
+
+_SQRT2 = math.sqrt(2.0)
 
 
 def _check_bounds(lower, upper, kind):
@@ -46,27 +49,142 @@ class PriorForm:
     log_norm: float
 
 
+@jit
+def _log_prior_form(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
+    """log p(x) of a prior in the common form of :class:`.priors.PriorForm`."""
+    if not (lower <= x <= upper):
+        return -math.inf
+    log_x = math.log(x) if log_scale else 0.0
+    y = ((log_x if log_scale else x) - w_mean) / w_sd  # 0 for the uniform kinds (sd = ∞)
+    return -log_x - 0.5 * y * y - log_norm
+
+
+@jit
+def _prior_log_pdf(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
+    n, k = x.shape
+    out = np.empty((n, k))
+    for r in range(n):
+        for c in range(k):
+            out[r, c] = _log_prior_form(
+                x[r, c], lower[c], upper[c], log_scale[c], w_mean[c], w_sd[c], log_norm[c]
+            )
+    return out
+
+
+@jit
+def normal_cdf(x):
+    """The standard normal CDF (compiled).
+
+    Parameters
+    ----------
+    x : float
+
+    Returns
+    -------
+    float
+        Φ(x) = erfc(−x/√2)/2, accurate in both tails.
+    """
+    return 0.5 * math.erfc(-x / _SQRT2)
+
+
+#: Codes of the unbounded maps in the compiled kernel (:data:`.priors.UNBOUNDED_MAPS`).
+LOGIT, PROBIT = 0, 1
+
+_LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+@jit
+def _unit_and_log_slope(t, kind):
+    """f(t) ∈ [0, 1] and log f′(t) of the logistic (``LOGIT``) or normal (``PROBIT``) CDF,
+    without overflow either side."""
+    if kind == PROBIT:
+        return normal_cdf(t), -0.5 * t * t - _LOG_SQRT_2PI
+    if t >= 0.0:
+        e = math.exp(-t)
+        return 1.0 / (1.0 + e), -t - 2.0 * math.log1p(e)
+    e = math.exp(t)
+    return e / (1.0 + e), t - 2.0 * math.log1p(e)
+
+
+@jit
+def _prior_from_unbounded(u, w_lower, span, log_scale, lower, upper, kind):
+    n, k = u.shape
+    x = np.empty((n, k))
+    log_jac = np.empty((n, k))
+    for r in range(n):
+        for c in range(k):
+            unit, log_slope = _unit_and_log_slope(u[r, c], kind)
+            w = w_lower[c] + span[c] * unit
+            jac = math.log(span[c]) + log_slope
+            value = w
+            if log_scale[c]:
+                value = math.exp(w)
+                jac += w
+            x[r, c] = min(max(value, lower[c]), upper[c])  # exp(log upper) may round above
+            log_jac[r, c] = jac
+    return x, log_jac
+
+
+def prior_log_pdf(x, lower, upper, log_scale, w_mean, w_sd, log_norm) -> np.ndarray:
+    """Log densities of the columns of x under priors in the common form (compiled).
+
+    Parameters
+    ----------
+    x : array (n, k)
+    lower, upper, log_scale, w_mean, w_sd, log_norm : arrays (k,)
+        The :class:`PriorForm` of each column's prior.
+
+    Returns
+    -------
+    array (n, k)
+        −[log_scale]·ln x − ½((w − w_mean)/w_sd)² − log_norm within [lower, upper]; −inf
+        outside each support and for NaN.
+    """
+    return _prior_log_pdf(
+        np.ascontiguousarray(x, dtype=np.float64), lower, upper, log_scale, w_mean, w_sd, log_norm
+    )
+
+
+def prior_from_unbounded(u, w_lower, span, log_scale, lower, upper, kind=LOGIT):
+    """Values and log-Jacobians of unbounded coordinates (compiled).
+
+    Parameters
+    ----------
+    u : array (n, k)
+    w_lower, span, log_scale, lower, upper : arrays (k,)
+        Of each column's :class:`PriorForm` (span = w_upper − w_lower).
+    kind : int
+        :data:`LOGIT` or :data:`PROBIT`.
+
+    Returns
+    -------
+    x : array (n, k)
+        w = w_lower + span·f(u), f the logistic or normal CDF; x = w, or exp(w) for
+        log-scale columns, within [lower, upper].
+    log_jac : array (n, k)
+        log|dx/du|.
+    """
+    return _prior_from_unbounded(
+        np.ascontiguousarray(u, dtype=np.float64), w_lower, span, log_scale, lower, upper, kind
+    )
+
+
 @dataclass(frozen=True)
 class UnboundedMap:
     """A CDF f that maps u ∈ ℝ onto the unit interval of a prior's support, with its
-    inverse (numpy) and its code in the compiled kernel (:mod:`.compiled`)."""
+    inverse (numpy) and its code in the compiled kernel (:data:`LOGIT`, :data:`PROBIT`)."""
 
     code: int
     inverse: object
 
 
 #: Unbounded maps by name (``InversionSettings.unbounded``). Neither is better on every
-#: shot. On the speed study's six 10-free GEDI shots (``studies/inversion_speed.py``,
-#: with the former half-bin ground prior) ``probit`` converged on 4 (steps 13 438,
-#: 11 107, 3 896, 6 899) and ``logit`` on 3 (the last three in 5 702, 4 713, 4 713; the
-#: first ran to 20 000 unconverged): ``probit`` helps where a parameter piles against a
-#: bound (crown length ratio, height sd) and slows the shots whose slowest direction is
-#: the understory. ``studies/sampling_coordinates.py``
-#: (6 other shots, 12 000 steps, τ of the physical quantities) gives a median largest τ
-#: of 110 under ``probit`` against 97 under ``logit``.
+#: shot: ``probit`` helps where a parameter piles against a bound (its tail in u falls off
+#: like a Gaussian), ``logit`` where the slowest direction lies inside the prior
+#: (``studies/inversion_speed.py --unbounded`` compares them).
 UNBOUNDED_MAPS = {
-    "logit": UnboundedMap(compiled.LOGIT, logit),
-    "probit": UnboundedMap(compiled.PROBIT, ndtri),
+    "logit": UnboundedMap(LOGIT, logit),
+    "probit": UnboundedMap(PROBIT, ndtri),
 }
 
 #: The default unbounded map.
@@ -74,7 +192,21 @@ DEFAULT_UNBOUNDED = "logit"
 
 
 def unbounded_map(name) -> UnboundedMap:
-    """The :data:`UNBOUNDED_MAPS` entry ``name``, or a ValueError naming the known ones."""
+    """The :data:`UNBOUNDED_MAPS` entry of a name.
+
+    Parameters
+    ----------
+    name : str
+
+    Returns
+    -------
+    UnboundedMap
+
+    Raises
+    ------
+    ValueError
+        Naming the known maps.
+    """
     try:
         return UNBOUNDED_MAPS[name]
     except KeyError:
@@ -85,7 +217,7 @@ def unbounded_map(name) -> UnboundedMap:
 
 class PriorTable:
     """Several priors evaluated together, column by column of an (n, k) array, in one
-    compiled pass (:mod:`.compiled`).
+    compiled pass (:func:`prior_log_pdf`, :func:`prior_from_unbounded`).
 
     Parameters
     ----------
@@ -107,25 +239,54 @@ class PriorTable:
         self._x_upper = np.array([f.upper for f in forms], float)
 
     def log_pdf(self, x) -> np.ndarray:
-        """Log densities (..., k) of the columns of x (..., k); −inf outside each support."""
+        """Log densities of the columns of x.
+
+        Parameters
+        ----------
+        x : array (..., k)
+
+        Returns
+        -------
+        array (..., k)
+            −inf outside each support.
+        """
         x = np.asarray(x, float)
         flat = x.reshape(-1, x.shape[-1]) if x.ndim != 2 else x
-        density = compiled.prior_log_pdf(
+        density = prior_log_pdf(
             flat, self._x_lower, self._x_upper, self._log, self._mean, self._sd, self._norm
         )
         return density.reshape(x.shape)
 
     def from_unbounded(self, u):
-        """Values (..., k) and log|dx/du| (..., k) of unbounded coordinates u (..., k)."""
+        """Values and log|dx/du| of unbounded coordinates.
+
+        Parameters
+        ----------
+        u : array (..., k)
+
+        Returns
+        -------
+        x, log_jac : arrays (..., k)
+        """
         u = np.asarray(u, float)
         flat = u.reshape(-1, u.shape[-1]) if u.ndim != 2 else u
-        x, log_jac = compiled.prior_from_unbounded(
+        x, log_jac = prior_from_unbounded(
             flat, self._lower, self._span, self._log, self._x_lower, self._x_upper, self._map.code
         )
         return x.reshape(u.shape), log_jac.reshape(u.shape)
 
     def to_unbounded(self, x):
-        """Unbounded coordinates (..., k) of values x (..., k); ±inf at the bounds."""
+        """Unbounded coordinates of values: the inverse of :meth:`from_unbounded`.
+
+        Parameters
+        ----------
+        x : array (..., k)
+
+        Returns
+        -------
+        array (..., k)
+            ±inf at the bounds.
+        """
         x = np.asarray(x, float)
         with np.errstate(divide="ignore", invalid="ignore"):
             w = np.where(self._log, np.log(x), x)
@@ -162,15 +323,38 @@ class Uniform(_OnePrior):
         _check_bounds(self.lower, self.upper, "uniform")
 
     def sample(self, rng, size):
+        """Draws from the prior.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        size : int
+
+        Returns
+        -------
+        array (size,)
+        """
         return rng.uniform(self.lower, self.upper, size)
 
     def form(self):
+        """The prior in the common form.
+
+        Returns
+        -------
+        PriorForm
+        """
         span = self.upper - self.lower
         return PriorForm(
             self.lower, self.upper, False, self.lower, self.upper, 0.0, np.inf, np.log(span)
         )
 
     def describe(self):
+        """The prior as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+        """
         return {"kind": "uniform", "lower": self.lower, "upper": self.upper}
 
 
@@ -187,9 +371,26 @@ class LogUniform(_OnePrior):
             raise ValueError(f"log-uniform prior needs lower > 0, got {self.lower}")
 
     def sample(self, rng, size):
+        """Draws from the prior.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        size : int
+
+        Returns
+        -------
+        array (size,)
+        """
         return np.exp(rng.uniform(np.log(self.lower), np.log(self.upper), size))
 
     def form(self):
+        """The prior in the common form (w = ln x).
+
+        Returns
+        -------
+        PriorForm
+        """
         span = np.log(self.upper / self.lower)
         return PriorForm(
             self.lower,
@@ -203,6 +404,12 @@ class LogUniform(_OnePrior):
         )
 
     def describe(self):
+        """The prior as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+        """
         return {"kind": "log-uniform", "lower": self.lower, "upper": self.upper}
 
 
@@ -225,6 +432,12 @@ class TruncatedNormal(_OnePrior):
         return np.log(self.sd) + np.log(ndtr(b) - ndtr(a)) + 0.5 * np.log(2 * np.pi)
 
     def form(self):
+        """The prior in the common form.
+
+        Returns
+        -------
+        PriorForm
+        """
         return PriorForm(
             self.lower,
             self.upper,
@@ -237,10 +450,27 @@ class TruncatedNormal(_OnePrior):
         )
 
     def sample(self, rng, size):
+        """Draws from the prior, by inversion of the truncated CDF.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        size : int
+
+        Returns
+        -------
+        array (size,)
+        """
         a, b = ndtr((self.lower - self.mean) / self.sd), ndtr((self.upper - self.mean) / self.sd)
         return self.mean + self.sd * ndtri(rng.uniform(a, b, size))
 
     def describe(self):
+        """The prior as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+        """
         return {
             "kind": "truncated-normal",
             "mean": self.mean,
@@ -274,6 +504,12 @@ class TruncatedLogNormal(_OnePrior):
         return np.log(self.sd_log) + np.log(ndtr(b) - ndtr(a)) + 0.5 * np.log(2 * np.pi)
 
     def form(self):
+        """The prior in the common form (w = ln x).
+
+        Returns
+        -------
+        PriorForm
+        """
         w_lower, w_upper = np.log(self.lower), np.log(self.upper)
         return PriorForm(
             self.lower,
@@ -287,10 +523,27 @@ class TruncatedLogNormal(_OnePrior):
         )
 
     def sample(self, rng, size):
+        """Draws from the prior, by inversion of the truncated CDF.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        size : int
+
+        Returns
+        -------
+        array (size,)
+        """
         a, b = ndtr(self._standard(self.lower)), ndtr(self._standard(self.upper))
         return self.median * np.exp(self.sd_log * ndtri(rng.uniform(a, b, size)))
 
     def describe(self):
+        """The prior as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+        """
         return {
             "kind": "truncated-log-normal",
             "median": self.median,
@@ -310,7 +563,23 @@ PRIOR_KINDS = {
 
 
 def make_prior(spec) -> object:
-    """A prior from a mapping such as ``{"kind": "uniform", "lower": 0, "upper": 1}``."""
+    """A prior from a mapping such as ``{"kind": "uniform", "lower": 0, "upper": 1}``.
+
+    Parameters
+    ----------
+    spec : mapping
+        ``kind`` (a key of :data:`PRIOR_KINDS`, default ``uniform``) and the kind's
+        numbers.
+
+    Returns
+    -------
+    Uniform, LogUniform, TruncatedNormal or TruncatedLogNormal
+
+    Raises
+    ------
+    ValueError
+        For an unknown kind, an unknown, missing or non-numeric number.
+    """
     spec = dict(spec)
     kind = spec.pop("kind", "uniform")
     try:

@@ -1,33 +1,22 @@
-"""Inversion parameters: names, units, priors, fixed values, and the unbounded coordinates.
+"""The parameter space of an inversion: priors, fixed values and sampling coordinates.
 
-The default parameterisation uses quantities a waveform identifies (crown cover and
-plant area index rather than stem density and FAVD, the top height of the height
-distribution rather than its mean) plus the nuisance parameters of the observation model
-(ground elevation, gain, baseline, noise σ and the reflectance ratio ρv/ρg).
+A :class:`ParameterSpace` is an ordered set of :class:`Parameter`; the free ones form the
+sampled vector, in physical units x or in the unbounded coordinates u the sampler moves
+in (each bounded prior mapped to the real line, :mod:`.priors`, and the posterior's
+ridges straightened, :mod:`.coordinates`). The default parameterisation is in
+:mod:`.parameters`.
 """
 
-import tomllib
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import compiled_coordinates, coordinates
-from .discrepancy import DISCREPANCY_MODELS
-from .priors import (
-    DEFAULT_UNBOUNDED,
-    LogUniform,
-    PriorTable,
-    TruncatedLogNormal,
-    Uniform,
-    make_prior,
-)
-from .stand_mapping import (
-    NO_STEM_DEPTH_M,
-    TALLEST_STEM,
-    TALLEST_STEM_MEAN_POSITION,
-    TALLEST_STEM_POSITION,
-    TOP_SDS,
-)
+from forward.backends import resolve
+
+from . import coordinates
+from .priors import DEFAULT_UNBOUNDED, PriorTable
+from .stand import TOP_SDS
+from .tallest_stem import NO_STEM_DEPTH_M, TALLEST_STEM
 
 
 @dataclass(frozen=True)
@@ -58,70 +47,6 @@ class Parameter:
     def free(self) -> bool:
         """Sampled: neither fixed nor marginalised."""
         return self.fixed is None and not self.marginalised
-
-
-#: Structural parameters of the default parameterisation: name → (units, description).
-STRUCTURE = {
-    "cover": ("1", "crown cover: fraction of ground under at least one crown"),
-    "pai": ("m2/m2", "plant area index of the tree crowns (one-sided)"),
-    "top_height": ("m", "top of the height distribution, mean + 2 sd (tallest tree)"),
-    "height_sd": ("m", "spread (sd) of the tree-height distribution"),
-    "crown_length_ratio": ("1", "crown length over tree height"),
-    "cone_fraction": ("1", "fraction of stems with conical crowns (the rest ellipsoids)"),
-    "crown_radius_slope": ("m/m", "crown radius per metre of tree height"),
-    "understory_height": ("m", "height of the uniform understory layer"),
-    "understory_lai": ("m2/m2", "leaf area index of the understory layer"),
-}
-
-#: Observation-model (nuisance) parameters: name → (units, description).
-NUISANCE = {
-    "ground_elevation": ("m", "ground elevation on the waveform axis"),
-    "gain": ("DN", "digitiser units per unit apparent reflectance (ρg = 1)"),
-    "baseline": ("DN", "noise mean"),
-    "noise_sigma": ("DN", "noise standard deviation"),
-    "rho_ratio": ("1", "canopy over ground reflectance ρv/ρg"),
-}
-
-#: Latent parameters, in the space only where the settings ask: name → (units, description).
-LATENT = {
-    TALLEST_STEM: (
-        "m",
-        "height of the footprint's tallest stem (within 2 sigma_f); below the lowest tree: none",
-    ),
-    TALLEST_STEM_POSITION: (
-        "1",
-        "squared distance of that stem from the footprint centre over the disc's (2 sigma_f)",
-    ),
-}
-
-UNITS = {name: units for name, (units, _) in {**STRUCTURE, **NUISANCE, **LATENT}.items()}
-
-#: Structural priors of the default parameterisation (nuisance priors depend on the shot).
-DEFAULT_STRUCTURE_PRIORS = {
-    "cover": Uniform(0.001, 0.99),
-    "pai": LogUniform(0.01, 15.0),
-    "top_height": Uniform(1.0, 80.0),
-    "height_sd": Uniform(0.1, 10.0),
-    "crown_length_ratio": Uniform(0.1, 1.0),
-    "cone_fraction": Uniform(0.0, 1.0),
-    "crown_radius_slope": LogUniform(0.02, 0.5),
-    "understory_height": Uniform(0.2, 3.0),
-    "understory_lai": Uniform(0.0, 3.0),
-}
-
-#: A physically plausible support for the implied FAVD (m²/m³), for ``favd_range`` (off by
-#: default): tree crowns hold about 0.05–3 m²/m³ (the paper's jack pine 0.8).
-PLAUSIBLE_FAVD_RANGE = (0.05, 3.0)
-
-#: Held fixed unless a priors file frees them. The tallest stem's position (when that
-#: latent is in the space) at its mean footprint weight: sampling it lengthened the chains
-#: by two fifths and changed no coverage of the required quantities (README, "The
-#: footprint's tallest stem, a latent").
-DEFAULT_FIXED = {"crown_radius_slope": 0.1, TALLEST_STEM_POSITION: TALLEST_STEM_MEAN_POSITION}
-
-#: Default prior of ρv/ρg: median 1.5 (the GEDI L2B value), a factor e^0.3 ≈ 1.35 either
-#: side at one sd; on the log scale because the data fix the product gain·ρv.
-DEFAULT_RHO_RATIO_PRIOR = TruncatedLogNormal(1.5, 0.3, 0.3, 5.0)
 
 
 #: Cover within this of 1 is left out of the joint cover-PAI coordinates' range (a prior
@@ -157,12 +82,27 @@ class ParameterSpace:
           instead of ``top_height``, when both are free.
     unbounded : str
         Map of each bounded prior to the real line, from :data:`.priors.UNBOUNDED_MAPS`.
+    interception_slope : float
+        a = k·G·Ω of the shot's instrument (``Instrument.extinction_per_favd``), the
+        slope of the cover–PAI and ground-centroid coordinates.
+    backend : str
+        ``"auto"``, ``"numba"`` or ``"numpy"`` for the ridge maps
+        (:func:`.coordinates.ridges_from_unbounded`).
     """
 
-    def __init__(self, parameters, ridges=coordinates.DEFAULT_RIDGES, unbounded=DEFAULT_UNBOUNDED):
+    def __init__(
+        self,
+        parameters,
+        ridges=coordinates.DEFAULT_RIDGES,
+        unbounded=DEFAULT_UNBOUNDED,
+        interception_slope=coordinates.INTERCEPTION_SLOPE,
+        backend="auto",
+    ):
         self.parameters = tuple(parameters)
         self.ridges = tuple(ridges)
         self.unbounded = unbounded
+        self.interception_slope = float(interception_slope)
+        self.backend = resolve(backend)
         unknown = sorted(set(self.ridges) - set(coordinates.RIDGE_COORDINATES))
         if unknown:
             raise ValueError(
@@ -215,7 +155,14 @@ class ParameterSpace:
         return len(self.free)
 
     def signature(self) -> str:
-        """The sampled coordinates, for labelling stored chains: free names and transforms."""
+        """The sampled coordinates, for labelling stored chains.
+
+        Returns
+        -------
+        str
+            The unbounded map, the ridge coordinates, each free parameter's prior and the
+            marginalised parameters.
+        """
         joint = "cover-pai-joint-v2" if self._joint is not None else "per-parameter"
         if self._base is not None:
             joint += ", crown-base-v1"
@@ -233,11 +180,32 @@ class ParameterSpace:
         return tuple(p.name for p in self.parameters if p.marginalised)
 
     def units(self, name) -> str:
+        """The units of a parameter.
+
+        Parameters
+        ----------
+        name : str
+
+        Returns
+        -------
+        str
+        """
         return self.by_name[name].units
 
     def values(self, x) -> dict:
-        """Every parameter's values (free from the columns of ``x`` (n, ndim), fixed filled;
-        marginalised ones are absent)."""
+        """Every parameter's values for rows of the free ones.
+
+        Parameters
+        ----------
+        x : array (n, ndim)
+            Physical values of the free parameters.
+
+        Returns
+        -------
+        dict
+            Name → (n,) values: the free ones from the columns of x, the fixed ones filled;
+            marginalised ones are absent.
+        """
         x = np.atleast_2d(np.asarray(x, float))
         out = {p.name: x[:, i] for i, p in enumerate(self.free)}
         for p in self.parameters:
@@ -246,54 +214,60 @@ class ParameterSpace:
         return out
 
     def log_prior(self, x) -> np.ndarray:
-        """Sum of the free parameters' log prior densities; −inf outside the support."""
+        """The free parameters' log prior density.
+
+        Parameters
+        ----------
+        x : array (n, ndim)
+
+        Returns
+        -------
+        array (n,)
+            Σ log π_k(x_k); −inf outside the support.
+        """
         x = np.atleast_2d(np.asarray(x, float))
         total = self._priors.log_pdf(x).sum(axis=1)
         return np.where(np.isfinite(total), total, -np.inf)
 
-    def from_unbounded(self, u, reference=False):
-        """Physical values (n, ndim) and log|Jacobian| (n,) from unbounded coordinates;
-        ``reference=True`` maps the ridge coordinates with numpy instead of compiled code."""
+    def from_unbounded(self, u, backend=None):
+        """Physical values and log|Jacobian| from unbounded coordinates.
+
+        Parameters
+        ----------
+        u : array (n, ndim)
+        backend : str, optional
+            For the ridge maps (:func:`.coordinates.ridges_from_unbounded`); the space's own
+            by default.
+
+        Returns
+        -------
+        x : array (n, ndim)
+        log_jac : array (n,)
+            log|∂x/∂u|: the priors' maps, the tallest stem's gap, then the ridge maps.
+        """
         u = np.atleast_2d(np.asarray(u, float))
         x, log_jac = self._priors.from_unbounded(u)
         if self._stem is not None:  # before the crown base, which needs the top
             top, stem = self._stem
             x[:, top], log_jac[:, top] = coordinates.top_from_stem_gap(x[:, stem], u[:, top])
-        (self._ridges_numpy if reference else self._ridges_compiled)(u, x, log_jac)
+        coordinates.ridges_from_unbounded(
+            u, x, log_jac, self._joint, self._base, self._centroid, self._ridge_inputs,
+            TOP_SDS, self.interception_slope, backend=self.backend if backend is None else backend,
+        )  # fmt: skip
         return x, log_jac.sum(axis=1)
 
-    def _ridges_numpy(self, u, x, log_jac):
-        """Overwrite the ridge-coordinate columns of x and log_jac in place."""
-        if self._joint is not None:
-            c, a, cover_bounds, pai_bounds = self._joint
-            x[:, c], x[:, a], log_jac[:, c] = coordinates.to_cover_pai_bounded(
-                u[:, c], u[:, a], cover_bounds, pai_bounds
-            )
-            log_jac[:, a] = 0.0
-        if self._base is not None:
-            r = self._base
-            x[:, r], log_jac[:, r] = coordinates.ratio_from_crown_base(u[:, r], self._mean(x))
-        if self._centroid is not None:
-            g, lower, stretch = self._centroid
-            centroid = lower + (x[:, g] - lower) * stretch
-            x[:, g] = centroid - self._understory_centroid(x)
-            log_jac[:, g] += np.log(stretch)
-
-    def _ridges_compiled(self, u, x, log_jac):
-        """As :meth:`_ridges_numpy`, in :mod:`.compiled_coordinates`."""
-        slope = coordinates.INTERCEPTION_SLOPE
-        if self._joint is not None:
-            c, a, cover_bounds, pai_bounds = self._joint
-            compiled_coordinates.cover_pai_bounded(
-                u, x, log_jac, c, a, cover_bounds, pai_bounds, slope
-            )
-        if self._base is not None or self._centroid is not None:
-            columns, fixed = self._ridge_inputs
-            compiled_coordinates.crown_and_ground(
-                u, x, log_jac, self._base, self._centroid, columns, fixed, TOP_SDS, slope
-            )
-
     def to_unbounded(self, x):
+        """Unbounded coordinates of physical values: the inverse of :meth:`from_unbounded`.
+
+        Parameters
+        ----------
+        x : array (n, ndim)
+
+        Returns
+        -------
+        array (n, ndim)
+            NaN or ±inf where x lies outside the support.
+        """
         x = np.atleast_2d(np.asarray(x, float))
         if self._centroid is not None:
             g, lower, stretch = self._centroid
@@ -304,7 +278,7 @@ class ParameterSpace:
         if self._joint is not None:
             c, a, cover_bounds, pai_bounds = self._joint
             u[:, c], u[:, a] = coordinates.from_cover_pai_bounded(
-                x[:, c], x[:, a], cover_bounds, pai_bounds
+                x[:, c], x[:, a], cover_bounds, pai_bounds, self.interception_slope
             )
         if self._base is not None:
             r = self._base
@@ -315,7 +289,7 @@ class ParameterSpace:
         return u
 
     def _index(self, name) -> int:
-        return self.names.index(name) if name in self.names else compiled_coordinates.FIXED
+        return self.names.index(name) if name in self.names else coordinates.FIXED
 
     def _fixed_value(self, name) -> float:
         p = self.by_name.get(name)
@@ -334,7 +308,7 @@ class ParameterSpace:
         lai, height, ratio = (
             self._column(x, name) for name in ("understory_lai", "understory_height", "rho_ratio")
         )
-        return coordinates.understory_centroid(lai, height, ratio)
+        return coordinates.understory_centroid(lai, height, ratio, self.interception_slope)
 
     def _centroid_map(self):
         """(column, lower, stretch) of the ground-centroid coordinate, or None where it does
@@ -355,10 +329,20 @@ class ParameterSpace:
         return self.names.index("ground_elevation"), ground.lower, (span + tallest) / span
 
     def sample_prior(self, rng, size) -> np.ndarray:
-        """Draws from the free parameters' priors; a tallest stem sampled with the top
-        height is drawn uniformly over the stand's height range below it, and the no-stem
-        range under that, instead (its law given the stand needs the stand's density:
-        these are candidates, to be scored)."""
+        """Draws from the free parameters' priors (candidates for the MAP search).
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        size : int
+
+        Returns
+        -------
+        array (size, ndim)
+            A tallest stem sampled with the top height is drawn uniformly over the stand's
+            height range below it and the no-stem range under that (its law given the stand
+            needs the stand's density: these are candidates, to be scored).
+        """
         x = np.column_stack([p.prior.sample(rng, size) for p in self.free])
         if TALLEST_STEM in self.names and "top_height" in self.by_name:
             top = self._column(x, "top_height")
@@ -368,7 +352,22 @@ class ParameterSpace:
         return x
 
     def with_changes(self, changes: dict) -> "ParameterSpace":
-        """A copy with per-parameter changes: ``{name: {"prior": …, "fixed": …}}``."""
+        """A copy with per-parameter changes.
+
+        Parameters
+        ----------
+        changes : dict
+            ``{name: {"prior": …, "fixed": …, "marginalised": …}}``.
+
+        Returns
+        -------
+        ParameterSpace
+
+        Raises
+        ------
+        ValueError
+            Naming unknown parameters.
+        """
         unknown = sorted(set(changes) - set(self.by_name))
         if unknown:
             raise ValueError(f"unknown parameter(s) {unknown}; known: {sorted(self.by_name)}")
@@ -376,9 +375,17 @@ class ParameterSpace:
         for p in self.parameters:
             change = changes.get(p.name, {})
             out.append(replace(p, **change) if change else p)
-        return ParameterSpace(out, self.ridges, self.unbounded)
+        return ParameterSpace(
+            out, self.ridges, self.unbounded, self.interception_slope, self.backend
+        )
 
     def describe(self) -> list:
+        """Every parameter's name, units, fixed value, prior and description.
+
+        Returns
+        -------
+        list of dict
+        """
         return [
             {
                 "name": p.name,
@@ -390,156 +397,3 @@ class ParameterSpace:
             }
             for p in self.parameters
         ]
-
-
-def default_space(
-    nuisance_priors: dict,
-    overrides: dict | None = None,
-    ridges=coordinates.DEFAULT_RIDGES,
-    unbounded=DEFAULT_UNBOUNDED,
-    tallest_stem=False,
-) -> ParameterSpace:
-    """The default parameterisation with shot-specific nuisance priors.
-
-    Parameters
-    ----------
-    nuisance_priors : dict
-        Priors for every name in :data:`NUISANCE` except ``rho_ratio`` (optional).
-    overrides : dict, optional
-        ``{name: {"prior": prior, "fixed": value or None}}``, e.g. from a priors file.
-    ridges : tuple of str
-        Sampling coordinates (see :class:`ParameterSpace`).
-    unbounded : str
-        Map of the bounded priors to the real line (see :class:`ParameterSpace`).
-    tallest_stem : bool
-        Add the latents :data:`LATENT` of the tallest stem, for a mapping that conditions
-        each footprint on its tallest stem: its height, over [−NO_STEM_DEPTH_M, the top
-        height's upper bound] (the range sampled; the stand gives its law), and its
-        position, uniform on [0, 1], held at its mean weight unless freed.
-    """
-    priors = {**DEFAULT_STRUCTURE_PRIORS, "rho_ratio": DEFAULT_RHO_RATIO_PRIOR, **nuisance_priors}
-    params = []
-    for name, (units, description) in {**STRUCTURE, **NUISANCE}.items():
-        if name not in priors:
-            raise ValueError(f"no prior given for {name}")
-        params.append(Parameter(name, units, priors[name], DEFAULT_FIXED.get(name), description))
-    if tallest_stem:
-        top = {**{"prior": priors["top_height"]}, **(overrides or {}).get("top_height", {})}
-        highest = max(top["prior"].form().upper, top.get("fixed") or 0.0)
-        ranges = {TALLEST_STEM: (-NO_STEM_DEPTH_M, highest), TALLEST_STEM_POSITION: (0.0, 1.0)}
-        for name, (units, description) in LATENT.items():
-            prior, fixed = Uniform(*ranges[name]), DEFAULT_FIXED.get(name)
-            params.append(Parameter(name, units, prior, fixed, description))
-    space = ParameterSpace(params, ridges, unbounded)
-    return space.with_changes(overrides) if overrides else space
-
-
-def read_priors_file(path) -> dict:
-    """Prior overrides from a TOML file.
-
-    Each table is a parameter name; keys ``kind`` (uniform, log-uniform,
-    truncated-normal) with its numbers, and/or ``fixed = value``, or ``free = true`` to
-    sample a parameter that is fixed by default::
-
-        [top_height]
-        kind = "uniform"
-        lower = 5.0
-        upper = 40.0
-
-        [understory_lai]
-        fixed = 0.0
-
-    A ``[favd]`` table with ``lower`` and ``upper`` (m²/m³) bounds the FAVD implied by the
-    other parameters (a joint prior constraint, see ``InversionSettings.favd_range``); it
-    is returned under the key ``"favd"`` as ``{"range": (lower, upper)}``. A ``[ground]``
-    table with ``prior_sd`` (m) sets the width of the ground-elevation prior around the
-    detected peak (``InversionSettings.ground_prior_sd_m``); it is returned under the key
-    ``"ground"`` as ``{"prior_sd": value}``. A ``[discrepancy]`` table with any of
-    ``model`` (``realisations``, ``observed`` or ``model``), ``eta`` (η) and ``count``
-    (realisations) chooses the model-discrepancy term (``InversionSettings.
-    discrepancy_model``, ``discrepancy``, ``realisations.count``); it is returned under
-    the key ``"discrepancy"`` as a dict of those keys. A table for either latent of
-    :data:`LATENT` (e.g. ``[tallest_stem_height]`` with ``free = true``) conditions
-    each footprint on its tallest stem (``InversionSettings.tallest_stem``).
-    """
-    try:
-        with open(path, "rb") as handle:
-            table = tomllib.load(handle)
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{path}: not valid TOML: {error}") from None
-    known = set(STRUCTURE) | set(NUISANCE) | set(LATENT) | set(_SETTINGS_TABLES)
-    unknown = sorted(set(table) - known)
-    if unknown:
-        raise ValueError(f"{path}: unknown parameter(s) {unknown}; known: {sorted(known)}")
-    changes = {}
-    for name, spec in table.items():
-        if not isinstance(spec, dict):
-            raise ValueError(f"{path}: [{name}] must be a table")
-        if name in _SETTINGS_TABLES:
-            changes[name] = _SETTINGS_TABLES[name](path, spec)
-            continue
-        spec = dict(spec)
-        change = {}
-        if "fixed" in spec:
-            value = float(spec.pop("fixed"))
-            if not np.isfinite(value):
-                raise ValueError(f"{path}: [{name}] fixed value must be finite")
-            change["fixed"] = value
-        elif spec.pop("free", False) or spec:
-            change["fixed"] = None
-        if spec:
-            try:
-                change["prior"] = make_prior(spec)
-            except ValueError as error:
-                raise ValueError(f"{path}: [{name}] {error}") from None
-        changes[name] = change
-    return changes
-
-
-def _favd_range(path, spec) -> dict:
-    unknown = sorted(set(spec) - {"lower", "upper"})
-    if unknown:
-        raise ValueError(f"{path}: [favd] takes lower and upper (m2/m3), not {unknown}")
-    low, high = float(spec.get("lower", 0.0)), float(spec.get("upper", np.inf))
-    if not (0.0 <= low < high):
-        raise ValueError(f"{path}: [favd] needs 0 <= lower < upper, got {low}, {high}")
-    return {"range": (low, high)}
-
-
-def _ground_prior(path, spec) -> dict:
-    unknown = sorted(set(spec) - {"prior_sd"})
-    if unknown:
-        raise ValueError(f"{path}: [ground] takes prior_sd (m), not {unknown}")
-    sd = float(spec.get("prior_sd", np.nan))
-    if not (np.isfinite(sd) and sd > 0):
-        raise ValueError(f"{path}: [ground] prior_sd must be a positive number of metres")
-    return {"prior_sd": sd}
-
-
-def _discrepancy(path, spec) -> dict:
-    unknown = sorted(set(spec) - {"model", "eta", "count"})
-    if unknown:
-        raise ValueError(f"{path}: [discrepancy] takes model, eta and count, not {unknown}")
-    out = {}
-    if "model" in spec:
-        if spec["model"] not in DISCREPANCY_MODELS:
-            raise ValueError(
-                f"{path}: [discrepancy] model {spec['model']!r} is not one of "
-                f"{sorted(DISCREPANCY_MODELS)}"
-            )
-        out["model"] = spec["model"]
-    if "eta" in spec:
-        eta = float(spec["eta"])
-        if not (np.isfinite(eta) and eta >= 0):
-            raise ValueError(f"{path}: [discrepancy] eta must be a number ≥ 0")
-        out["eta"] = eta
-    if "count" in spec:
-        count = spec["count"]
-        if not (isinstance(count, int) and count >= 2):
-            raise ValueError(f"{path}: [discrepancy] count must be an integer ≥ 2")
-        out["count"] = count
-    return out
-
-
-#: Priors-file tables that set InversionSettings rather than a parameter's prior.
-_SETTINGS_TABLES = {"favd": _favd_range, "ground": _ground_prior, "discrepancy": _discrepancy}

@@ -1,8 +1,9 @@
 """From inversion parameters to the expected-waveform model, and the derived quantities.
 
 Cover c and crown plant area index L fix stem density and FAVD through the Poisson-stand
-identities (for a height density f and crown radius R(h) = r0 + r1·h; the expectations
-are closed forms in the raw moments E[h^k] of the height family):
+identities of :mod:`forward.poisson_stand` (for a height density f and crown radius
+R(h) = r0 + r1·h; the expectations are closed forms in the raw moments E[h^k] of the
+height family):
 
     c = 1 − exp(−λ·E[π R²])             →  λ = −ln(1 − c) / E[π R²]   (stems/m²)
     L = λ·FAVD·Σ_s m_s κ_s v_s E[π R² ℓ h]  →  FAVD = L / (λ·Σ …)     (m²/m³)
@@ -12,16 +13,28 @@ the shapes and ℓ the crown length ratio. The top height is mean + 2·sd of the
 family: for the default truncated normal (truncated at ±2 sd) it is the tallest tree.
 The crown-volume profile, whose integrand has kinks at the crown ends, uses Gauss–Legendre
 quadrature on the bulk of each row's distribution.
+
+:func:`stand_columns` takes ``backend=`` (:mod:`forward.backends`): its compiled kernel
+(truncated-normal heights) computes in two passes over the rows what numpy computes in
+some forty calls on short arrays, calling the same identities. The model vector is built
+by field name (:func:`forward.expected.vectors_by_name`): an inversion parameter named
+as a vector field passes through; the others come from the template.
 """
 
-import numpy as np
+import math
 
+import numpy as np
+from scipy.special import ndtri
+
+from forward import poisson_stand
+from forward.backends import jit, resolve
 from forward.crowns import CROWN_SHAPES
-from forward.expected import MIX_FIELDS, VECTOR_FIELDS
-from forward.expected.vectors import CONDITIONING_FIELDS
+from forward.expected import CONDITIONING_FIELDS, MIX_FIELDS, VECTOR_FIELDS, vectors_by_name
 from forward.stand_params import HEIGHT_DISTRIBUTIONS, StandParams
 
-from . import compiled_stand
+from . import tallest_stem
+from .priors import normal_cdf as _cdf
+from .tallest_stem import TALLEST_STEM, TALLEST_STEM_POSITION
 
 #: top_height = height_mean + TOP_SDS·height_sd.
 TOP_SDS = 2.0
@@ -47,35 +60,25 @@ DERIVED = {
 #: Stems per hectare whose mean height is the dominant height.
 DOMINANT_PER_HA = 100.0
 
-#: The latent parameter of a footprint conditioned on its tallest stem: that stem's height
-#: H (m), whose law given the stand is the Poisson order statistic
-#: (:meth:`StandMapping.tallest_stem_log_density`); H below the stand's lowest tree stands
-#: for a disc without a stem.
-TALLEST_STEM = "tallest_stem_height"
-
-#: Depth (m) of the range of H just below the stand's lowest tree that stands for a disc
-#: without a stem, which spreads the chance of none, e^{−λA}, uniformly over it. Joined to
-#: the support, it lets the sampler pass between a short stem and none.
-NO_STEM_DEPTH_M = 1.0
-
-#: The latent position of that stem: its squared distance from the footprint centre over
-#: the disc's squared radius, uniform a priori; it sets the stem's footprint weight.
-TALLEST_STEM_POSITION = "tallest_stem_position"
-
-#: The latent parameters of a footprint conditioned on its tallest stem.
-TALLEST_STEM_LATENTS = (TALLEST_STEM, TALLEST_STEM_POSITION)
-
-#: Radius (in footprint σ) of the disc whose tallest stem conditions the footprint: the
-#: 1/e² radius, holding 1 − e⁻² of the footprint's weight.
-TALLEST_STEM_RADIUS_SIGMAS = 2.0
-
-#: The position V whose footprint weight exp(−2V) is the disc's mean, (1 − e⁻²)/2: where V
-#: is held there, the realisation covariance carries the spread of the stem's weight.
-TALLEST_STEM_MEAN_POSITION = -0.5 * np.log(0.5 * (1.0 - np.exp(-2.0)))
+#: Columns of the array :func:`stand_columns` returns.
+COLUMNS = ("density_m2", "mean", "favd", "crown_area", "mean_height", "volume", "dominant")
 
 
 def default_template(shape_pair=("cone", "ellipsoid")) -> StandParams:
-    """Template stand for the default parameterisation (truncated-normal heights)."""
+    """Template stand of the default parameterisation.
+
+    Parameters
+    ----------
+    shape_pair : (str, str)
+        The crown shapes mixed by ``cone_fraction``.
+
+    Returns
+    -------
+    StandParams
+        Truncated-normal heights truncated at ±:data:`TOP_SDS` sd, one cohort, the two
+        shapes half and half; the values the parameters do not set (crown-radius
+        intercept, FAVD ratios) are the template's.
+    """
     return StandParams(
         density=500.0,
         height_mean=15.0,
@@ -106,15 +109,17 @@ class StandMapping:
         Nodes of the crown-volume profile, whose integrand has kinks at the crown ends.
     footprint_sigma_m : float (m) or None
         If set, condition each footprint on its tallest stem within the disc of radius
-        R = :data:`TALLEST_STEM_RADIUS_SIGMAS`·σf (area A): the parameters then include
-        the latents :data:`TALLEST_STEM_LATENTS`: the stem's height H (m), whose law
-        given the stand is that of the tallest of a Poisson(λA) draw of stems
-        (:meth:`tallest_stem_log_density`), and V, uniform a priori: the stem stands at
-        r² = V·R² from the centre.
-        Cohort 1 stops at H (``height_cap``) and the stem itself is an apex cohort whose
-        density is its footprint weight, exp(−r²/2σf²)/(2πσf²) stems per m²
-        (``apex_density``; on average over V, the disc's weight 1 − e⁻² over A). Stems
-        outside the disc are capped too, an approximation worth e⁻² of the weight.
+        R = :data:`.tallest_stem.TALLEST_STEM_RADIUS_SIGMAS`·σf (area A): the parameters
+        then include the latents :data:`.tallest_stem.TALLEST_STEM_LATENTS`: the stem's
+        height H (m), whose law given the stand is that of the tallest of a Poisson(λA)
+        draw of stems (:func:`.tallest_stem.log_density`), and V, uniform a priori: the
+        stem stands at r² = V·R² from the centre. Cohort 1 stops at H (``height_cap``) and
+        the stem itself is an apex cohort whose density is its footprint weight
+        (``apex_density``, :func:`.tallest_stem.stem_density_per_ha`). Stems outside the
+        disc are capped too, an approximation worth e⁻² of the weight.
+    backend : str
+        ``"auto"``, ``"numba"`` or ``"numpy"`` for :func:`stand_columns` (compiled for
+        truncated-normal heights only).
     """
 
     def __init__(
@@ -123,6 +128,7 @@ class StandMapping:
         shape_pair=("cone", "ellipsoid"),
         profile_nodes=48,
         footprint_sigma_m=None,
+        backend="auto",
     ):
         if template.cohort2_fraction > 0:
             raise ValueError("the default parameterisation models a single cohort")
@@ -138,18 +144,22 @@ class StandMapping:
         self._volume = np.array([CROWN_SHAPES[s].volume_fraction for s in shape_pair])
         self._leaf = self._volume * np.array([ratio[s] for s in shape_pair])
         self.model_free = MODEL_FIELDS + tuple(f"mix_{s}" for s in shape_pair)
-        #: model_vectors through :mod:`.compiled_stand` (truncated-normal heights only)
-        self.compiled = template.height_family == "truncnorm"
         assert all(f in MIX_FIELDS for f in self.model_free[len(MODEL_FIELDS) :])
+        #: the backend of :func:`stand_columns`: compiled for truncated-normal heights
+        compiled = resolve(backend) == "numba" and template.height_family == "truncnorm"
+        self.backend = "numba" if compiled else "numpy"
         #: whether footprints are conditioned on their tallest stem (and its disc's area)
         self.conditioned = footprint_sigma_m is not None
         if self.conditioned:
             if not (np.isfinite(footprint_sigma_m) and footprint_sigma_m > 0):
                 raise ValueError(f"footprint_sigma_m must be positive, got {footprint_sigma_m}")
-            radius = TALLEST_STEM_RADIUS_SIGMAS * float(footprint_sigma_m)
-            self.tallest_stem_area = np.pi * radius**2
-            self._apex_per_ha = 1e4 / (2.0 * np.pi * float(footprint_sigma_m) ** 2)
+            self.footprint_sigma_m = float(footprint_sigma_m)
+            self.tallest_stem_area = tallest_stem.disc_area(footprint_sigma_m)
             self.model_free += tuple(CONDITIONING_FIELDS)
+
+    def _value(self, v, name):
+        """The parameter ``name`` of rows ``v`` where they have it, else the template's."""
+        return v[name] if name in v else getattr(self.template, name)
 
     def _quadrature(self, mean, sd):
         """Heights (n, q) and weights (n, q) of the profile's rule over the bulk of each
@@ -168,12 +178,26 @@ class StandMapping:
         h, weight = self._quadrature(mean, sd)
         total = weight.sum(axis=1)
         p = weight / np.where(total > 0, total, 1.0)[:, None]
-        radius = self.template.crown_radius_intercept + v["crown_radius_slope"][:, None] * h
+        r0 = np.asarray(self._value(v, "crown_radius_intercept"), float)
+        radius = (r0[..., None] if r0.ndim else r0) + v["crown_radius_slope"][:, None] * h
         area = np.pi * radius**2
         return mean, sd, h, p, area
 
     def valid(self, v) -> np.ndarray:
-        """Rows whose parameters describe a stand (before any model evaluation)."""
+        """Rows whose parameters describe a stand (before any model evaluation).
+
+        Parameters
+        ----------
+        v : dict
+            Every parameter's (n,) values.
+
+        Returns
+        -------
+        array of bool (n,)
+            A positive mean height and sd the family supports, cover in (0, 1), positive PAI,
+            crown length ratio in (0, 1], cone fraction in [0, 1], a positive understory
+            height, non-negative understory LAI and ρv/ρg, a positive crown-radius slope.
+        """
         mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
         ok = (mean > 0) & (sd > 0) & (v["cover"] > 0) & (v["cover"] < 1) & (v["pai"] > 0)
         ok &= (v["crown_length_ratio"] > 0) & (v["crown_length_ratio"] <= 1)
@@ -184,52 +208,58 @@ class StandMapping:
         return ok & self.family.valid(safe_mean, safe_sd, self.truncation)
 
     def model_vectors(self, v):
-        """Expected-model vectors (n, len(model_free)) and scalar derived quantities.
+        """Expected-model vectors and scalar derived quantities of parameter rows.
 
-        ``v`` maps every parameter name to an (n,) array; rows must be :meth:`valid`.
-        Expectations over heights are closed forms of the raw moments E[h^k], k ≤ 3;
-        truncated-normal heights take the compiled path (:mod:`.compiled_stand`).
+        Parameters
+        ----------
+        v : dict
+            Every parameter's (n,) values (:meth:`.space.ParameterSpace.values`); rows
+            must be :meth:`valid`.
+
+        Returns
+        -------
+        vectors : array (n, len(model_free))
+            The fields of :attr:`model_free`, built by name: parameters named as vector
+            fields pass through; density, mean height, FAVD, the reflectances, the shape
+            mix (and the tallest stem's cap and apex density) are mapped; the rest is the
+            template's.
+        derived : dict
+            Crown area (m²), density (stems/ha), FAVD (m²/m³), mean and dominant height
+            (m), crown volume (m³/ha) and LAI (m²/m²) per row; with the tallest stem, its
+            height (0 where the disc holds none) and log density (1/m).
         """
-        if self.compiled:
-            columns = compiled_stand.stand_columns(
-                v,
-                self.template.crown_radius_intercept,
-                TOP_SDS,
-                self.truncation,
-                self._volume,
-                self._leaf,
-                DOMINANT_PER_HA,
-            )
-            lam, mean, favd, area, m1, volume, dominant = columns.T
-        else:
-            lam, mean, favd, area, m1, volume, dominant = self._stand_columns(v)
+        columns = stand_columns(
+            v, self._value(v, "crown_radius_intercept"), TOP_SDS, self.family,
+            self.truncation, self._volume, self._leaf, DOMINANT_PER_HA, backend=self.backend,
+        )  # fmt: skip
+        lam, mean, favd, area, m1, volume, dominant = columns.T
         cone = v["cone_fraction"]
-        vectors = np.column_stack(
-            [
-                lam * 1e4,
-                mean,
-                v["height_sd"],
-                v["crown_length_ratio"],
-                np.full_like(mean, self.template.crown_radius_intercept),
-                v["crown_radius_slope"],
-                favd,
-                v["understory_height"],
-                v["understory_lai"],
-                v["rho_ratio"],
-                np.ones_like(mean),
-                v["ground_elevation"],
-                cone,
-                1.0 - cone,
-            ]
+        fields = {name: v[name] for name in self.model_free if name in v}
+        fields.update(
+            {
+                "density": lam * 1e4,
+                "height_mean": mean,
+                "crown_radius_intercept": self._value(v, "crown_radius_intercept"),
+                "favd": favd,
+                "canopy_reflectance": v["rho_ratio"],
+                "ground_reflectance": 1.0,
+                f"mix_{self.shape_pair[0]}": cone,
+                f"mix_{self.shape_pair[1]}": 1.0 - cone,
+            }
         )
         if self.conditioned:
-            args, lowest = self._arguments_and_lowest(mean, v["height_sd"])
+            args, lowest = tallest_stem.arguments_and_lowest(
+                self.family, mean, v["height_sd"], self.truncation
+            )
             tallest = v[TALLEST_STEM]
             some = tallest >= lowest
-            cap = np.where(some, tallest, 1e-6)  # no stem in the disc: no tree below the cap
-            weight = np.exp(-0.5 * TALLEST_STEM_RADIUS_SIGMAS**2 * v[TALLEST_STEM_POSITION])
-            apex = np.where(some, self._apex_per_ha * weight, 0.0)
-            vectors = np.column_stack([vectors, cap, apex])
+            # no stem in the disc: no tree below the cap
+            fields["height_cap"] = np.where(some, tallest, 1e-6)
+            weight = tallest_stem.stem_density_per_ha(
+                v[TALLEST_STEM_POSITION], self.footprint_sigma_m
+            )
+            fields["apex_density"] = np.where(some, weight, 0.0)
+        vectors = vectors_by_name(fields, self.model_free)
         derived = {
             "crown_area": area,  # m², not a blob: for the discrepancy model
             "density": lam * 1e4,
@@ -241,36 +271,25 @@ class StandMapping:
         }
         if self.conditioned:  # m, 0 where the disc holds no stem
             derived["tallest_stem"] = np.where(some, tallest, 0.0)
-            derived["tallest_stem_log_density"] = self.tallest_stem_log_density(
-                args, lowest, lam * self.tallest_stem_area, tallest
+            derived["tallest_stem_log_density"] = tallest_stem.log_density(
+                self.family, args, lowest, lam * self.tallest_stem_area, tallest
             )
         return vectors, derived
 
-    def _stand_columns(self, v):
-        """Density (stems/m²), mean of the parent normal (m), FAVD (m²/m³), crown area
-        E[π R²] (m²), mean height (m), crown volume (m³/m²) and dominant height (m) per
-        row, in numpy for any height family (the reference of the compiled path)."""
-        mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
-        m1, m2, m3 = np.moveaxis(
-            self.family.raw_moments((1, 2, 3), mean, sd, self.truncation), -1, 0
-        )
-        r0, r1 = self.template.crown_radius_intercept, v["crown_radius_slope"]
-        mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
-        per_stem_area = np.pi * (r0 * r0 + 2.0 * r0 * r1 * m1 + r1 * r1 * m2)  # E[π R²]
-        crown_volume = (
-            np.pi * (r0 * r0 * m1 + 2.0 * r0 * r1 * m2 + r1 * r1 * m3) * v["crown_length_ratio"]
-        )  # E[π R² ℓ h]
-        lam = -np.log1p(-v["cover"]) / per_stem_area
-        volume = lam * crown_volume * (mix @ self._volume)
-        favd = v["pai"] / (lam * crown_volume * (mix @ self._leaf))
-        dominant = self._dominant_height(mean, sd, lam * 1e4)
-        return lam, mean, favd, per_stem_area, m1, volume, dominant
-
     def crowns_spanning(self, v, z) -> np.ndarray:
-        """Stems per m² whose crowns span height ``z`` (m above the ground), (n, nz).
+        """Stems per m² whose crowns span heights above the ground.
 
-        A crown of a tree of height h spans [(1 − ℓ)·h, h], so the trees are those with
-        z ≤ h ≤ z/(1 − ℓ); ``v`` holds ``density_m2`` (n,) besides the parameters.
+        Parameters
+        ----------
+        v : dict
+            The parameters' (n,) values and ``density_m2`` (n,) (stems/m²).
+        z : array (m)
+            Heights above the ground, broadcast against (n, 1).
+
+        Returns
+        -------
+        array (n, nz) (stems/m²)
+            λ·(S(z) − S(z/(1 − ℓ))): a crown of a tree of height h spans [(1 − ℓ)·h, h].
         """
         mean = v["top_height"] - TOP_SDS * v["height_sd"]
         sd, ratio = v["height_sd"][:, None], v["crown_length_ratio"][:, None]
@@ -282,68 +301,65 @@ class StandMapping:
         return v["density_m2"][:, None] * np.maximum(taller, 0.0)
 
     def tallest_in_area(self, v, area, uniform) -> np.ndarray:
-        """Height (m) of the tallest stem among those of a Poisson stand on ``area`` (m²),
-        one draw per row from uniform variates ``uniform`` (n,); 0 where no stem stands.
+        """Height of the tallest stem among those of a Poisson stand on an area.
 
-        With N ~ Poisson(λ·area) stems of height survival S(h), the tallest one has
-        P(max ≤ h) = exp(−λ·area·S(h)), so a draw solves S(h) = −ln U / (λ·area).
-        ``v`` holds ``density_m2`` (n,) besides the parameters. The mean of these draws
-        is :func:`forward.derived.expected_max_height`.
+        Parameters
+        ----------
+        v : dict
+            The parameters' (n,) values and ``density_m2`` (n,) (stems/m²).
+        area : float (m²)
+        uniform : array (n,)
+            Uniform variates, one draw per row.
+
+        Returns
+        -------
+        array (n,) (m)
+            The draw of :func:`.tallest_stem.draw_tallest`; 0 where no stem stands. The
+            mean of these draws is :func:`forward.derived.expected_max_height`.
         """
         mean = v["top_height"] - TOP_SDS * v["height_sd"]
-        tallest, some = self._tallest(mean, v["height_sd"], v["density_m2"] * area, uniform)
+        tallest, some = tallest_stem.draw_tallest(
+            self.family, mean, v["height_sd"], self.truncation, v["density_m2"] * area, uniform
+        )
         return np.where(some, tallest, 0.0)
 
-    def tallest_stem_log_density(self, args, lowest, stems, tallest) -> np.ndarray:
-        """Log density (1/m) of the tallest stem's height H (m) in a disc holding
-        Poisson(``stems``) stems of height density f and survival S (the height family of
-        arguments ``args``, whose lowest tree is ``lowest``, m): P(max ≤ h) =
-        exp(−stems·S(h)), so H has the density stems·f(H)·exp(−stems·S(H)) on the
-        family's support, and the chance of no stem, e^{−stems}, is spread over the
-        :data:`NO_STEM_DEPTH_M` below ``lowest``; −inf elsewhere."""
-        some = tallest >= lowest
-        height = np.where(some, tallest, lowest)
-        with np.errstate(divide="ignore"):
-            law = np.log(stems * self.family.fast("pdf", height, *args))
-        law -= stems * self.family.fast("sf", height, *args)
-        none = np.where(tallest >= lowest - NO_STEM_DEPTH_M, -np.log(NO_STEM_DEPTH_M), -np.inf)
-        return np.where(some, law, none - stems)
-
     def lowest_height(self, v) -> np.ndarray:
-        """Height (m) of the lowest tree of each row's height family, (n,)."""
+        """Height of the lowest tree of each row's height family.
+
+        Parameters
+        ----------
+        v : dict
+
+        Returns
+        -------
+        array (n,) (m)
+        """
         mean = v["top_height"] - TOP_SDS * v["height_sd"]
-        return self._arguments_and_lowest(mean, v["height_sd"])[1]
-
-    def _arguments_and_lowest(self, mean, sd):
-        """The height family's arguments and its lowest tree's height (m) per row."""
-        args = self.family.arguments(mean, sd, self.truncation)
-        return args, self.family.fast("ppf", np.zeros_like(mean), *args)
-
-    def _tallest(self, mean, sd, stems, uniform):
-        """Height (m) solving S(h) = −ln U / ``stems`` (the expected stems on the area) and
-        whether any stem stands there; where none does, the lowest height of the family."""
-        with np.errstate(divide="ignore"):
-            tail = -np.log(uniform) / stems
-        some = tail < 1.0
-        args = self.family.arguments(mean, sd, self.truncation)
-        return self.family.fast("isf", np.minimum(tail, 1.0), *args), some
-
-    def _dominant_height(self, mean, sd, density):
-        """Mean height of the DOMINANT_PER_HA tallest stems per hectare (all if fewer):
-        the family's closed-form partial mean above the cut over the share above it, which
-        is the tail the cut was taken at."""
-        tail = np.clip(DOMINANT_PER_HA / density, 1e-9, 1.0)
-        args = self.family.arguments(mean, sd, self.truncation)
-        cut = self.family.fast("isf", tail, *args)
-        return self.family.fast("mean_above", cut, *args) / tail
+        return tallest_stem.arguments_and_lowest(
+            self.family, mean, v["height_sd"], self.truncation
+        )[1]
 
     def crown_volume_profile(self, v, z) -> np.ndarray:
-        """Crown volume per unit ground area and height (m³/m²/m) at heights z (m), (n, nz)."""
+        """Crown volume per unit ground area and unit height.
+
+        Parameters
+        ----------
+        v : dict
+            Every parameter's (n,) values.
+        z : array (m)
+            Heights above the ground.
+
+        Returns
+        -------
+        array (n, nz) (m³/m²/m)
+            λ·Σ_s m_s ∫ f(h)·π Rc(h)²·a_s((z − (1 − ℓ)h)/ℓh) dh, a Gauss–Legendre rule over the
+            bulk of each row's distribution (a_s the shape's horizontal section).
+        """
         z = np.asarray(z, float)
         mean, _sd, h, p, area = self._moments(v)
         ratio = v["crown_length_ratio"][:, None, None]
         mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
-        lam = -np.log1p(-v["cover"]) / np.sum(p * area, axis=1)
+        lam = poisson_stand.density_from_cover(v["cover"], np.sum(p * area, axis=1))
         length = ratio * h[:, None, :]
         s = (z[None, :, None] - (h[:, None, :] - length)) / length
         out = np.zeros((mean.size, z.size))
@@ -351,3 +367,147 @@ class StandMapping:
             section = CROWN_SHAPES[shape].section(s)
             out += mix[:, k, None] * np.sum((p * area)[:, None, :] * section, axis=2)
         return lam[:, None] * out
+
+
+def stand_columns(v, r0, top_sds, family, truncation, volume, leaf, per_ha, *, backend="auto"):
+    """Stand quantities per row of parameters: the Poisson-stand identities.
+
+    Parameters
+    ----------
+    v : dict
+        ``top_height`` (m), ``height_sd`` (m), ``cover``, ``pai`` (m²/m²),
+        ``crown_length_ratio``, ``crown_radius_slope`` (m/m), ``cone_fraction``: (n,) each;
+        rows must be valid.
+    r0 : float or array (n,) (m)
+        Crown-radius intercept.
+    top_sds : float
+        Mean height = top − ``top_sds``·sd.
+    family : forward.stand_params.HeightFamily
+    truncation : float (sd units)
+    volume, leaf : array (2,)
+        The shape pair's volume fractions v_s and leaf-volume fractions κ_s·v_s.
+    per_ha : float (stems/ha)
+        The dominant height is the mean of the ``per_ha`` tallest stems per hectare (all
+        if fewer).
+    backend : str
+        ``"auto"``, ``"numba"`` or ``"numpy"``; compiled for ``truncnorm`` heights only.
+
+    Returns
+    -------
+    array (n, 7)
+        The :data:`COLUMNS`: density λ (stems/m²), height mean (m), FAVD (m²/m³), crown
+        area E[π R²] (m²), mean height E[h] (m), crown volume (m³/m²), dominant height (m).
+
+    Notes
+    -----
+    λ = −ln(1 − c)/E[π R²], FAVD = L/(λ·E[π R² ℓ h]·Σ m_s κ_s v_s), crown volume
+    λ·E[π R² ℓ h]·Σ m_s v_s (:mod:`forward.poisson_stand`), from the raw moments
+    E[h], E[h²], E[h³] of the height family.
+    """
+    n = np.shape(v["top_height"])[0]
+    r0 = np.broadcast_to(np.asarray(r0, float), (n,))
+    if resolve(backend) == "numba" and family.name == "truncnorm":
+        args = [np.ascontiguousarray(v[name], dtype=np.float64) for name in _INPUTS]
+        t = float(truncation)
+        out = _stand_columns(
+            *args, np.ascontiguousarray(r0), float(top_sds), t, volume, leaf, float(per_ha)
+        )
+        _dominant_heights(out, ndtri(out[:, 7]), args[1], t)
+        return out[:, :7]
+    mean, sd = v["top_height"] - top_sds * v["height_sd"], v["height_sd"]
+    m1, m2, m3 = np.moveaxis(family.raw_moments((1, 2, 3), mean, sd, truncation), -1, 0)
+    r1 = v["crown_radius_slope"]
+    mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
+    area = poisson_stand.crown_area_moment(r0, r1, m1, m2)  # E[π R²]
+    crown = poisson_stand.crown_volume_moment(r0, r1, m1, m2, m3, v["crown_length_ratio"])
+    lam = poisson_stand.density_from_cover(v["cover"], area)
+    crown_volume = poisson_stand.crown_volume(lam, crown, mix @ volume)
+    favd = poisson_stand.favd_from_lai(v["pai"], lam, crown, mix @ leaf)
+    dominant = _dominant_height(family, mean, sd, truncation, lam * 1e4, per_ha)
+    return np.column_stack([lam, mean, favd, area, m1, crown_volume, dominant])
+
+
+def _dominant_height(family, mean, sd, truncation, density, per_ha):
+    """Mean height of the ``per_ha`` tallest stems per hectare (all if fewer):
+    the family's closed-form partial mean above the cut over the share above it, which
+    is the tail the cut was taken at."""
+    tail = np.clip(per_ha / density, 1e-9, 1.0)
+    args = family.arguments(mean, sd, truncation)
+    cut = family.fast("isf", tail, *args)
+    return family.fast("mean_above", cut, *args) / tail
+
+
+#: Parameters read by the kernel of :func:`stand_columns`, in its order.
+_INPUTS = (
+    "top_height",
+    "height_sd",
+    "cover",
+    "pai",
+    "crown_length_ratio",
+    "crown_radius_slope",
+    "cone_fraction",
+)
+
+_SQRT_2PI = math.sqrt(2.0 * math.pi)
+_density_from_cover = jit(poisson_stand.density_from_cover)
+_crown_area_moment = jit(poisson_stand.crown_area_moment)
+_crown_volume_moment = jit(poisson_stand.crown_volume_moment)
+_crown_volume = jit(poisson_stand.crown_volume)
+_favd_from_lai = jit(poisson_stand.favd_from_lai)
+
+
+@jit
+def _pdf(x):
+    return math.exp(-0.5 * x * x) / _SQRT_2PI
+
+
+@jit
+def _stand_columns(top, sd, cover, pai, ratio, slope, cone, r0, top_sds, t, vol, leaf, per_ha):
+    """The kernel of :func:`stand_columns` for truncated-normal heights: raw moments
+    E[h^k], k ≤ 3, of N(mean, sd²) truncated to [max(mean − t·sd, 0), mean + t·sd], the
+    Poisson-stand identities, and the dominant stems' share (column 6) and Φ of their cut
+    (column 7) for :func:`_dominant_heights`."""
+    n = top.size
+    out = np.empty((n, 8))
+    for i in range(n):
+        mean = top[i] - top_sds * sd[i]
+        a = max(-t, -mean / sd[i])
+        mass = _cdf(t) - _cdf(a)
+        pa, pb = _pdf(a) / mass, _pdf(t) / mass
+        s1 = pa - pb  # standard moments of the truncated normal
+        s2 = 1.0 + a * pa - t * pb
+        s3 = 2.0 * s1 + a * a * pa - t * t * pb
+        m, s = mean, sd[i]
+        m1 = m + s * s1
+        m2 = m * m + 2.0 * m * s * s1 + s * s * s2
+        m3 = m * m * m + 3.0 * m * m * s * s1 + 3.0 * m * s * s * s2 + s * s * s * s3
+        area = _crown_area_moment(r0[i], slope[i], m1, m2)  # E[π R²]
+        crown = _crown_volume_moment(r0[i], slope[i], m1, m2, m3, ratio[i])  # E[π R² ℓ h]
+        lam = _density_from_cover(cover[i], area)
+        mix_vol = cone[i] * vol[0] + (1.0 - cone[i]) * vol[1]
+        mix_leaf = cone[i] * leaf[0] + (1.0 - cone[i]) * leaf[1]
+        tail = min(max(per_ha / (lam * 1e4), 1e-9), 1.0)
+        out[i, 0] = lam
+        out[i, 1] = mean
+        out[i, 2] = _favd_from_lai(pai[i], lam, crown, mix_leaf)
+        out[i, 3] = area
+        out[i, 4] = m1
+        out[i, 5] = _crown_volume(lam, crown, mix_vol)
+        out[i, 6] = tail
+        out[i, 7] = _cdf(t) - tail * mass  # Φ of the dominant stems' cut
+    return out
+
+
+@jit
+def _dominant_heights(out, quantile, sd, t):
+    """Mean height of the trees above each row's cut (column 6 of ``out``, overwritten),
+    from the cut's standard normal score: [mean·(Φ(b) − Φ(y)) + sd·(φ(y) − φ(b))] /
+    mass / tail."""
+    for i in range(out.shape[0]):
+        mean, tail = out[i, 1], out[i, 6]
+        a = max(-t, -mean / sd[i])
+        mass = _cdf(t) - _cdf(a)
+        y = min(max(quantile[i], a), t)
+        above = _cdf(-y) - _cdf(-t)  # upper-tail form: no cancellation near b
+        density = _pdf(y) - _pdf(t)
+        out[i, 6] = (mean * above + sd[i] * density) / mass / tail

@@ -11,7 +11,7 @@ FIRST_CHUNK = 1000
 class BatchedSampler(emcee.EnsembleSampler):
     """emcee's sampler for a log-probability that returns one (n, 1 + n_blobs) float array
     per batch (:class:`.posterior.LogPosterior`): the log-probability and the blobs are
-    columns of it, not split walker by walker (0.1 ms a step less with 64 walkers)."""
+    columns of it, not split walker by walker."""
 
     def compute_log_prob(self, coords):
         coords = np.asarray(coords, float)
@@ -38,11 +38,21 @@ def sample_in_chunks(sampler, state, steps, first=None):
     :data:`FIRST_CHUNK`), then as many steps as the chain already holds.
 
     emcee grows its backend by all the steps asked of one ``sample`` call before taking
-    the first: a 20 000-step cap of 64 walkers, 9 coordinates and 8 blobs is 184 MB, for
-    runs that mostly stop within 2000 steps. In chunks the storage stays within twice the
-    steps taken, in a few grows (a GEDI shot's 1610-step inversion: peak memory 185 MB
-    above the start instead of 267 MB, in the same time). The chain is the same: each
-    chunk resumes from the last state with its random state, the walkers not re-checked.
+    the first; runs mostly stop far below their step cap. In chunks the storage stays
+    within twice the steps taken, in a few grows. The chain is the same: each chunk
+    resumes from the last state with its random state, the walkers not re-checked.
+
+    Parameters
+    ----------
+    sampler : emcee.EnsembleSampler
+    state : State or array (n_walkers, ndim)
+    steps : int
+    first : int, optional
+
+    Yields
+    ------
+    emcee.State
+        The state after each step.
     """
     first = FIRST_CHUNK if first is None else int(first)
     taken = 0
