@@ -89,8 +89,20 @@ def true_values(params: StandParams, gain: float, baseline: float, noise_sigma: 
 
 
 def tallest_within(stand, centre, footprint_sigma_m) -> float:
-    """Height (m) of the tallest stem within the footprint's 1/e² radius of ``centre``; 0
-    if none (:func:`lidarinv.inference.model.tallest_stem.tallest_stem_within`)."""
+    """The tallest stem of an explicit stand within the footprint's 1/e² radius.
+
+    Parameters
+    ----------
+    stand : forward.stand.Stand
+    centre : (float, float) (m)
+    footprint_sigma_m : float (m)
+
+    Returns
+    -------
+    float (m)
+        Its height; 0 if none (:func:`lidarinv.inference.model.tallest_stem.
+        tallest_stem_within`).
+    """
     return tallest_stem_within(stand, centre, footprint_sigma_m)[0]
 
 

@@ -42,7 +42,7 @@ from lidarinv.inference import (  # noqa: E402
     invert_shot,
 )
 from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS  # noqa: E402
-from lidarinv.inference.model.priors import DEFAULT_UNBOUNDED, UNBOUNDED_MAPS  # noqa: E402
+from lidarinv.inference.model.prior_table import DEFAULT_UNBOUNDED, UNBOUNDED_MAPS  # noqa: E402
 
 TARGET_SECONDS = 10.0
 

@@ -14,13 +14,8 @@ from forward.expected import ExpectedWaveformModel, ModelSettings, depth, grid, 
 from forward.expected.settings import GRID_UNDERSHOOT
 from lidarinv.inference.model import coordinates
 from lidarinv.inference.model.parameters import DEFAULT_STRUCTURE_PRIORS, default_space
-from lidarinv.inference.model.stand import (
-    DOMINANT_PER_HA,
-    TOP_SDS,
-    StandMapping,
-    default_template,
-    stand_columns,
-)
+from lidarinv.inference.model.stand import TOP_SDS, StandMapping, default_template
+from lidarinv.inference.model.stand_columns import DOMINANT_PER_HA, stand_columns
 from tests.testing import assert_backends_agree, assert_fast_path
 
 pytest.importorskip("numba")

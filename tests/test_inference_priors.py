@@ -9,10 +9,9 @@ from scipy import integrate, stats
 from lidarinv.inference import InversionSettings
 from lidarinv.inference.model import coordinates
 from lidarinv.inference.model.parameters import default_space
+from lidarinv.inference.model.prior_table import UNBOUNDED_MAPS, PriorTable
 from lidarinv.inference.model.priors import (
-    UNBOUNDED_MAPS,
     LogUniform,
-    PriorTable,
     TruncatedLogNormal,
     TruncatedNormal,
     Uniform,

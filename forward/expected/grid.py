@@ -2,7 +2,7 @@
 
 The expected model evaluates the trees' optical depth on a grid of whole fine layers
 anchored on a bin edge at or below each row's ground. From there the samples follow by
-one constant matrix (:func:`.tables.grid_operator`: Catmull–Rom interpolation to the
+one constant matrix (:func:`.interpolation.grid_operator`: Catmull–Rom interpolation to the
 layer edges, layer energies, pulse), a correction for a uniform understory below its top,
 and a shift of each row by whole bins. :func:`assemble_grid` and :func:`grid_canopy` take
 ``backend=`` (:mod:`forward.backends`); compiled, :func:`grid_canopy` runs the depth grid,
@@ -68,7 +68,7 @@ def assemble_grid(
     ----------
     depth : array (n, nodes)
     operator : tuple
-        :func:`.tables.grid_operator` of the grid.
+        :func:`.interpolation.grid_operator` of the grid.
     shift : array (n,)
         Whole bins from the window's first bin edge to each row's grid.
     under_scale, under_top : arrays (n,)

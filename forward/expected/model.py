@@ -11,14 +11,16 @@ import numpy as np
 
 from ..backends import resolve
 from ..crowns import CROWN_SHAPES, SHAPE_NAMES
+from ..height_families import HEIGHT_DISTRIBUTIONS
 from ..pulse import layer_kernel
-from ..stand_params import HEIGHT_DISTRIBUTIONS, StandParams
+from ..stand_params import StandParams
 from .cohorts import Cohort, cohorts
 from .depth import groups, tree_depth
 from .grid import clip_keeping_energy, grid_canopy
 from .ground import ground_return
+from .interpolation import catmull_rom, grid_operator
 from .settings import GRID_UNDERSHOOT, ExpectedWaveforms, ModelSettings, engine_oversampling
-from .tables import catmull_rom, grid_operator, radial_rule, tail_matrix
+from .tables import radial_rule, tail_matrix
 from .vectors import (
     CONDITIONING_FIELDS,
     DEFAULT_FREE,
@@ -349,7 +351,7 @@ class ExpectedWaveformModel:
         )  # fmt: skip
 
     def _grid_operator(self, nodes):
-        """:func:`.tables.grid_operator` for ``nodes``, cached."""
+        """:func:`.interpolation.grid_operator` for ``nodes``, cached."""
         if nodes not in self._operators:
             if len(self._operators) >= 16:
                 self._operators.clear()

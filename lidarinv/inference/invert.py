@@ -45,6 +45,10 @@ def invert_shot(
         A ``realisations`` discrepancy is simulated again on resuming: pass a generator
         seeded as for the first run to continue under the same covariance.
 
+    Returns
+    -------
+    InversionResult
+
     Raises
     ------
     ValueError

@@ -17,7 +17,7 @@ from lidarinv.io.priors_file import read_priors_file, read_toml
 
 from .likelihood.discrepancy import DISCREPANCY_MODELS
 from .model.coordinates import DEFAULT_RIDGES
-from .model.priors import DEFAULT_UNBOUNDED
+from .model.prior_table import DEFAULT_UNBOUNDED
 from .model.tallest_stem import TALLEST_STEM_LATENTS
 from .sampling.sampler import SamplerSettings
 
@@ -132,7 +132,7 @@ class InversionSettings:
         parameter on its own.
     unbounded : str
         Map of the bounded priors to the real line the sampler moves on
-        (:data:`.model.priors.UNBOUNDED_MAPS`): ``"logit"`` (logistic CDF, the default) or
+        (:data:`.model.prior_table.UNBOUNDED_MAPS`): ``"logit"`` (logistic CDF, the default) or
         ``"probit"`` (normal CDF, lighter tails where a parameter piles against a bound).
         The posterior is the same; only the coordinates the ensemble moves in change.
     priors : dict
@@ -202,7 +202,12 @@ class InversionSettings:
         return cls(priors=priors, **changes)
 
     def describe(self) -> dict:
-        """The settings as a JSON-ready dict (stored with each result)."""
+        """The settings as a JSON-ready dict (stored with each result).
+
+        Returns
+        -------
+        dict
+        """
         nested = ("priors", "sampler", "model", "realisations")
         out = {k: v for k, v in self.__dict__.items() if k not in nested}
         out["realisations"] = asdict(self.realisations)

@@ -28,7 +28,7 @@ from scipy.special import log_ndtr
 
 from forward.backends import jit
 
-from ..model.priors import _log_prior_form
+from ..model.prior_table import _log_prior_form
 
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -293,7 +293,7 @@ def gain_log_likelihood(fit, unit, log_weights, span, form):
         Half-width (sd) of q's bulk about its mode.
     form : array (6,)
         The prior's (lower, upper, log_scale, w_mean, w_sd, log_norm)
-        (:class:`lidarinv.inference.model.priors.PriorForm`).
+        (:class:`lidarinv.inference.model.prior_table.PriorForm`).
 
     Returns
     -------

@@ -9,7 +9,8 @@ reaches the model by that name (:class:`.stand.StandMapping`).
 """
 
 from .coordinates import DEFAULT_RIDGES, INTERCEPTION_SLOPE
-from .priors import DEFAULT_UNBOUNDED, LogUniform, TruncatedLogNormal, Uniform
+from .prior_table import DEFAULT_UNBOUNDED
+from .priors import LogUniform, TruncatedLogNormal, Uniform
 from .space import Parameter, ParameterSpace
 from .tallest_stem import (
     NO_STEM_DEPTH_M,

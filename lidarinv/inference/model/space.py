@@ -14,7 +14,7 @@ import numpy as np
 from forward.backends import resolve
 
 from . import coordinates
-from .priors import DEFAULT_UNBOUNDED, PriorTable
+from .prior_table import DEFAULT_UNBOUNDED, PriorTable
 from .stand import TOP_SDS
 from .tallest_stem import NO_STEM_DEPTH_M, TALLEST_STEM
 
@@ -81,7 +81,7 @@ class ParameterSpace:
         - ``tallest-stem``: the log gap between the top height and the tallest stem
           instead of ``top_height``, when both are free.
     unbounded : str
-        Map of each bounded prior to the real line, from :data:`.priors.UNBOUNDED_MAPS`.
+        Map of each bounded prior to the real line, from :data:`.prior_table.UNBOUNDED_MAPS`.
     interception_slope : float
         a = k·G·Ω of the shot's instrument (``Instrument.extinction_per_favd``), the
         slope of the cover–PAI and ground-centroid coordinates.

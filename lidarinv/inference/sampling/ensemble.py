@@ -14,6 +14,23 @@ class BatchedSampler(emcee.EnsembleSampler):
     columns of it, not split walker by walker."""
 
     def compute_log_prob(self, coords):
+        """emcee's ``compute_log_prob`` for a log-probability that returns one (n, 1 + n_blobs)
+        array per batch.
+
+        Parameters
+        ----------
+        coords : array (n, ndim)
+
+        Returns
+        -------
+        log_prob : array (n,)
+        blobs : array (n, n_blobs), (n,) or None
+
+        Raises
+        ------
+        ValueError
+            For non-finite positions, a result of the wrong shape, or NaN log-probabilities.
+        """
         coords = np.asarray(coords, float)
         if not np.all(np.isfinite(coords)):
             raise ValueError("a walker's position holds NaN or infinite values")

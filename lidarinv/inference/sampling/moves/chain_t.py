@@ -48,6 +48,20 @@ class ChainStudentMove(EnsembleStudentMove):
         return True
 
     def get_proposal(self, s, c, random):
+        """emcee's ``RedBlueMove.get_proposal``: from the fitted t, or the ensemble-t's until the
+        first fit.
+
+        Parameters
+        ----------
+        s : array (k, ndim)
+        c : list of arrays
+        random : numpy.random.RandomState
+
+        Returns
+        -------
+        proposal : array (k, ndim)
+        log_factor : array (k,)
+        """
         if self.mean is None:
             return super().get_proposal(s, c, random)
         return self._independence_proposal(s, self.mean, self.chol, random)

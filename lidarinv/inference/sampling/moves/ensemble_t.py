@@ -39,6 +39,22 @@ class EnsembleStudentMove(BatchAcceptance):
         super().__init__(**kwargs)
 
     def get_proposal(self, s, c, random):
+        """emcee's ``RedBlueMove.get_proposal``: independence proposals from the t of the others.
+
+        Parameters
+        ----------
+        s : array (k, ndim)
+            The walkers moving.
+        c : list of arrays
+            The complementary walkers.
+        random : numpy.random.RandomState
+
+        Returns
+        -------
+        proposal : array (k, ndim)
+        log_factor : array (k,)
+            log q(s) − log q(proposal), the Hastings factors.
+        """
         fitted = self._fit_t(np.concatenate(c, axis=0))
         if fitted is None:
             return s.copy(), np.zeros(len(s))

@@ -15,6 +15,18 @@ class BatchAcceptance(RedBlueMove):
     """A red-blue move whose Metropolis–Hastings tests run on a whole half-ensemble."""
 
     def propose(self, model, state):
+        """emcee's ``Move.propose``: each half-ensemble proposed and tested in one batch.
+
+        Parameters
+        ----------
+        model : emcee.model.Model
+        state : emcee.State
+
+        Returns
+        -------
+        state : emcee.State
+        accepted : array of bool (n_walkers,)
+        """
         n_walkers, ndim = state.coords.shape
         if n_walkers < 2 * ndim and not self.live_dangerously:
             raise RuntimeError(
