@@ -132,7 +132,10 @@ def test_gaussian_ground_kernel_equals_the_point_returns():
     gap0, rho_v, rho_g = rng.uniform(0.01, 1.0, n), rng.uniform(0.1, 0.6, n), np.full(n, 0.4)
     valid = rng.uniform(size=n) > 0.1
     args = (canopy, gap0, zg, rho_v, rho_g, valid, heights, dz, pulse, pulse.support(1e-12))
-    assert_backends_agree(ground.ground_return, *args, rtol=1e-12, atol=1e-15)
+    _, _, slow = assert_backends_agree(ground.ground_return, *args, rtol=1e-12, atol=1e-15)
+    assert np.all(slow[~valid] == 0.0) and slow[valid].sum(axis=1).min() > 0.0
+    # each valid row's ground holds ρg·E[P(0)] (the pulse resolved, its support inside)
+    np.testing.assert_allclose(slow[valid].sum(axis=1), (rho_g * gap0)[valid], rtol=1e-9)
 
 
 @pytest.mark.parametrize("name", sorted(TEMPLATES))
