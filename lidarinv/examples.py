@@ -75,7 +75,6 @@ def true_values(params: StandParams, gain: float, baseline: float, noise_sigma: 
         "top_height": params.height_mean + TOP_SDS * params.height_sd,
         "height_sd": params.height_sd,
         "crown_length_ratio": params.crown_length_ratio,
-        "crown_radius_intercept": params.crown_radius_intercept,
         "cone_fraction": mix["cone"],
         "understory_height": params.understory_height,
         "understory_lai": params.understory_lai,

@@ -36,17 +36,3 @@ def test_compiled_mapping_equals_the_numpy_reference(shapes):
 def test_only_truncated_normal_heights_take_the_compiled_path():
     template = default_template().with_values(height_family="weibull")
     assert StandMapping(template, backend="numba").backend == "numpy"
-
-
-def test_a_sampled_crown_radius_intercept_reaches_the_model_by_name():
-    """A parameter named as a vector field passes to the expected model, and the Poisson
-    identities use it: the same cover with wider crowns holds fewer stems."""
-    mapping = StandMapping(default_template())
-    v = _rows(np.random.default_rng(2), 50)
-    v = {name: values[mapping.valid(v)] for name, values in v.items()}
-    n = v["cover"].size
-    vectors, derived = mapping.model_vectors({**v, "crown_radius_intercept": np.full(n, 0.5)})
-    column = mapping.model_free.index("crown_radius_intercept")
-    np.testing.assert_array_equal(vectors[:, column], 0.5)
-    _, plain = mapping.model_vectors({**v, "crown_radius_intercept": np.zeros(n)})
-    assert np.all(derived["density"] < plain["density"])

@@ -28,7 +28,6 @@ STRUCTURE = {
     "crown_length_ratio": ("1", "crown length over tree height"),
     "cone_fraction": ("1", "fraction of stems with conical crowns (the rest ellipsoids)"),
     "crown_radius_slope": ("m/m", "crown radius per metre of tree height"),
-    "crown_radius_intercept": ("m", "crown radius at zero height (R = intercept + slope·h)"),
     "understory_height": ("m", "height of the uniform understory layer"),
     "understory_lai": ("m2/m2", "leaf area index of the understory layer"),
 }
@@ -65,7 +64,6 @@ DEFAULT_STRUCTURE_PRIORS = {
     "crown_length_ratio": Uniform(0.1, 1.0),
     "cone_fraction": Uniform(0.0, 1.0),
     "crown_radius_slope": LogUniform(0.02, 0.5),
-    "crown_radius_intercept": Uniform(0.0, 1.0),
     "understory_height": Uniform(0.2, 3.0),
     "understory_lai": Uniform(0.0, 3.0),
 }
@@ -77,11 +75,7 @@ PLAUSIBLE_FAVD_RANGE = (0.05, 3.0)
 #: Held fixed unless a priors file frees them: the crown-radius slope, and the tallest
 #: stem's position (when that latent is in the space) at its mean footprint weight, whose
 #: spread the realisation covariance then carries.
-DEFAULT_FIXED = {
-    "crown_radius_slope": 0.1,
-    "crown_radius_intercept": 0.0,
-    TALLEST_STEM_POSITION: TALLEST_STEM_MEAN_POSITION,
-}
+DEFAULT_FIXED = {"crown_radius_slope": 0.1, TALLEST_STEM_POSITION: TALLEST_STEM_MEAN_POSITION}
 
 #: Default prior of ρv/ρg: median 1.5 (the GEDI L2B value), a factor e^0.3 ≈ 1.35 either
 #: side at one sd; on the log scale because the data fix the product gain·ρv.
