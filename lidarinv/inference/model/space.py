@@ -32,7 +32,7 @@ class Parameter:
         If set, the parameter is held at this value and not sampled.
     description : str
     marginalised : bool
-        Integrated out of the likelihood against its prior (:mod:`.marginal`, the gain
+        Integrated out of the likelihood against its prior (:mod:`..likelihood.marginal`, the gain
         only) instead of sampled; its posterior samples are drawn afterwards.
     """
 

@@ -19,7 +19,7 @@ class ChainStudentMove(EnsembleStudentMove):
 
     The ensemble-t fits its t to the 32 walkers of the other half, a noisy covariance in
     10 dimensions; this one fits it to thousands of points of the chain so far. Until
-    :meth:`fit` is called it is the ensemble-t move. :func:`.sampling.run_sampler` fits
+    :meth:`fit` is called it is the ensemble-t move. :func:`..sampler.run_sampler` fits
     it at a few early steps and then freezes it: from the last fit on the proposal is one
     fixed distribution, so the chain is an exact MCMC chain, and the run discards the
     steps before that fit as burn-in.

@@ -1,4 +1,5 @@
-"""Optimisations in lockstep: the same answers as one at a time, in fewer batched calls."""
+"""Optimisations in lockstep (sampling.batched_minimize): the same answers as one at a time, in
+fewer batched calls."""
 
 import numpy as np
 import pytest
