@@ -203,8 +203,9 @@ def support_bins(heights, centres, support):
     (int, int)
     """
     low, high = support
-    first = max(int(np.searchsorted(heights, np.min(centres) + low)), 0)
-    last = int(np.searchsorted(heights, np.max(centres) + high, side="right"))
+    centres = np.asarray(centres)
+    first = max(int(np.searchsorted(heights, centres.min() + low)), 0)
+    last = int(np.searchsorted(heights, centres.max() + high, side="right"))
     return first, last
 
 

@@ -164,8 +164,8 @@ def grid_canopy(
         else:
             stacked = [np.stack([_f64(c[i]) for c in cohorts]) for i in range(5)]
         return _grid_canopy(
-            *stacked, *(_f64(x) for x in (NO_POINTS if points is None else points)),
-            *(_f64(x) for x in crowns), _f64(z0), float(grid_step), int(nodes),
+            *stacked, *map(_f64, NO_POINTS if points is None else points),
+            *map(_f64, crowns), _f64(z0), float(grid_step), int(nodes),
             _f64(matrix), int(first), np.ascontiguousarray(shift, dtype=np.int64),
             _f64(interp), _f64(layers_to_samples), _f64(under_scale), _f64(under_top),
             float(layer), int(bins), float(undershoot),

@@ -82,12 +82,15 @@ def vectors_by_name(columns, fields) -> np.ndarray:
         Where a field has no column or a column names no field: a name slip is an error,
         never a silent shift of columns.
     """
-    missing = [name for name in fields if name not in columns]
-    extra = sorted(set(columns) - set(fields))
-    if missing or extra:
+    if columns.keys() != set(fields):
+        missing = [name for name in fields if name not in columns]
+        extra = sorted(set(columns) - set(fields))
         raise ValueError(f"vector columns: missing {missing}, not in the layout {extra}")
-    shape = np.broadcast_shapes(*(np.shape(columns[name]) for name in fields))
-    return np.column_stack([np.broadcast_to(columns[name], shape) for name in fields])
+    rows = next((len(v) for v in columns.values() if isinstance(v, np.ndarray) and v.ndim), 1)
+    out = np.empty((rows, len(fields)))
+    for i, name in enumerate(fields):  # one assignment per column (a sampler's hot path)
+        out[:, i] = columns[name]
+    return out
 
 
 def _bounds():

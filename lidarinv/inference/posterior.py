@@ -170,7 +170,9 @@ class LogPosterior:
             if gain_fit is not None:
                 gain_fit[~ok] = np.nan
             log_like = np.where(ok, like, -np.inf)
-            blobs = np.column_stack([derived[name] for name in BLOB_NAMES])
+            blobs = np.empty((x.shape[0], len(BLOB_NAMES)))
+            for column, name in enumerate(BLOB_NAMES):
+                blobs[:, column] = derived[name]
             blobs[~ok] = np.nan
             log_post = log_prior + log_like
         log_post = np.where(np.isfinite(log_post), log_post, -np.inf)

@@ -60,14 +60,11 @@ def stand_columns(v, r0, top_sds, family, truncation, volume, leaf, per_ha, *, b
     λ·E[π R² ℓ h]·Σ m_s v_s (:mod:`forward.poisson_stand`), from the raw moments
     E[h], E[h²], E[h³] of the height family.
     """
-    n = np.shape(v["top_height"])[0]
-    r0 = np.broadcast_to(np.asarray(r0, float), (n,))
     if resolve(backend) == "numba" and family.name == "truncnorm":
         args = [np.ascontiguousarray(v[name], dtype=np.float64) for name in _INPUTS]
+        r0 = np.ascontiguousarray(np.broadcast_to(np.asarray(r0, float), args[0].shape))
         t = float(truncation)
-        out = _stand_columns(
-            *args, np.ascontiguousarray(r0), float(top_sds), t, volume, leaf, float(per_ha)
-        )
+        out = _stand_columns(*args, r0, float(top_sds), t, volume, leaf, float(per_ha))
         _dominant_heights(out, ndtri(out[:, 7]), args[1], t)
         return out[:, :7]
     mean, sd = v["top_height"] - top_sds * v["height_sd"], v["height_sd"]

@@ -7,7 +7,7 @@ row, its validity, and the derived quantities, including the relative heights of
 model waveform (:func:`relative_heights`).
 """
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -18,9 +18,10 @@ from .stand import StandMapping
 #: RH levels reported per posterior sample, by name.
 RH_LEVELS = {"rh50": 0.5, "rh98": 0.98}
 
+_LEVELS = np.array(list(RH_LEVELS.values()))
 
-@dataclass(frozen=True)
-class ModelRows:
+
+class ModelRows(NamedTuple):
     """The model stage's output for a batch of parameter rows.
 
     Attributes
@@ -87,10 +88,9 @@ class ShotModel:
         """
         vectors, derived = self.mapping.model_vectors(values)
         result = self.expected.evaluate(vectors)
-        heights = relative_heights(
-            result.samples, self.axis, values["ground_elevation"], tuple(RH_LEVELS.values())
-        )
-        derived.update({name: heights[:, i] for i, name in enumerate(RH_LEVELS)})
+        heights = relative_heights(result.samples, self.axis, values["ground_elevation"], _LEVELS)
+        for i, name in enumerate(RH_LEVELS):
+            derived[name] = heights[:, i]
         return ModelRows(result.samples, result.valid, derived)
 
 
