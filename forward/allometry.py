@@ -43,7 +43,23 @@ class Allometry:
     crown_radius_slope: float
 
     def height(self, dbh_cm):
-        """Tree height (m) from DBH (cm)."""
+        """Tree height from stem diameter.
+
+        Parameters
+        ----------
+        dbh_cm : float or array (cm)
+            Diameter at breast height, finite and ≥ 0.
+
+        Returns
+        -------
+        float or array (m)
+            h = 1.3 + a·(1 − e^{−b·DBH})^c (Chapman–Richards).
+
+        Raises
+        ------
+        ValueError
+            For a negative or non-finite DBH.
+        """
         dbh = np.asarray(dbh_cm, float)
         if np.any(dbh < 0) or not np.all(np.isfinite(dbh)):
             raise ValueError("DBH must be finite and non-negative (cm)")
@@ -52,12 +68,32 @@ class Allometry:
         )
 
     def crown_length(self, height_m):
-        """Crown length (m) from height (m), never longer than the tree."""
+        """Crown length from tree height.
+
+        Parameters
+        ----------
+        height_m : float or array (m)
+
+        Returns
+        -------
+        float or array (m)
+            intercept + slope·h, clipped to [0, h]: never longer than the tree.
+        """
         h = np.asarray(height_m, float)
         return np.clip(self.crown_length_intercept + self.crown_length_slope * h, 0.0, h)
 
     def crown_radius(self, height_m):
-        """Crown radius (m) from height (m)."""
+        """Crown radius from tree height.
+
+        Parameters
+        ----------
+        height_m : float or array (m)
+
+        Returns
+        -------
+        float or array (m)
+            max(intercept + slope·h, 0).
+        """
         h = np.asarray(height_m, float)
         return np.maximum(self.crown_radius_intercept + self.crown_radius_slope * h, 0.0)
 

@@ -10,10 +10,30 @@ FWHM_PER_SIGMA = 2.0 * math.sqrt(2.0 * math.log(2.0))
 
 
 def ns_to_height(duration_ns):
-    """Height difference (m) spanned by a two-way delay of ``duration_ns`` (ns): c·t/2."""
+    """Height difference spanned by a two-way delay.
+
+    Parameters
+    ----------
+    duration_ns : float or array (ns)
+
+    Returns
+    -------
+    float or array (m)
+        z = c·t/2.
+    """
     return duration_ns * SPEED_OF_LIGHT_M_PER_NS / 2.0
 
 
 def height_to_ns(height_m):
-    """Two-way delay (ns) of a height difference ``height_m`` (m): 2·z/c."""
+    """Two-way delay of a height difference.
+
+    Parameters
+    ----------
+    height_m : float or array (m)
+
+    Returns
+    -------
+    float or array (ns)
+        t = 2·z/c.
+    """
     return 2.0 * height_m / SPEED_OF_LIGHT_M_PER_NS

@@ -97,7 +97,23 @@ SHAPE_NAMES: tuple[str, ...] = tuple(CROWN_SHAPES)
 
 
 def shape_codes(names) -> np.ndarray:
-    """Integer codes for an array of shape names; raises ``ValueError`` naming unknown ones."""
+    """Integer codes of crown shape names.
+
+    Parameters
+    ----------
+    names : array of str
+        Names from :data:`SHAPE_NAMES`.
+
+    Returns
+    -------
+    array of int8
+        Indices into :data:`SHAPE_NAMES`.
+
+    Raises
+    ------
+    ValueError
+        Naming the unknown shapes.
+    """
     names = np.asarray(names, dtype=str)
     lookup = {name: code for code, name in enumerate(SHAPE_NAMES)}
     unknown = sorted(set(names.tolist()) - set(lookup))
@@ -132,6 +148,18 @@ def crown_interval(codes, rho, base, length):
 
 
 def crown_volume(codes, crown_radius, crown_length):
-    """Crown volume (m³) of each tree."""
+    """Crown volume of each tree.
+
+    Parameters
+    ----------
+    codes : array of int
+        Shape codes (:func:`shape_codes`).
+    crown_radius, crown_length : array (m)
+
+    Returns
+    -------
+    array (m³)
+        v_s·π·Rc²·Lc, v_s the shape's volume fraction of its cylinder.
+    """
     fractions = np.array([CROWN_SHAPES[name].volume_fraction for name in SHAPE_NAMES])
     return fractions[codes] * np.pi * crown_radius**2 * crown_length

@@ -1,13 +1,15 @@
 """Stand quantities derived from :class:`~forward.stand_params.StandParams`.
 
-All are expectations for the Poisson stand the parameters describe, computed by
-quadrature over the height distribution (a fine grid, trapezoid rule). Crowns are the
-only woody-free plant material modelled, so the plant area index equals the leaf area
-index of crowns plus understory.
+All are expectations for the Poisson stand the parameters describe: the identities of
+:mod:`forward.poisson_stand` with their expectations over heights computed by quadrature
+over the height distribution (a fine grid, trapezoid rule). Crowns are the only
+woody-free plant material modelled, so the plant area index equals the leaf area index
+of crowns plus understory.
 """
 
 import numpy as np
 
+from . import poisson_stand
 from .crowns import CROWN_SHAPES, SHAPE_NAMES
 
 _GRID = 4001
@@ -37,17 +39,37 @@ def _expect(params, values):
 
 
 def mean_height(params) -> float:
-    """Mean tree height (m) over all stems."""
+    """Mean tree height over all stems.
+
+    Parameters
+    ----------
+    params : StandParams
+
+    Returns
+    -------
+    float (m)
+        E[h] = Σ_s ∫ f_s(h)·h dh over both cohorts.
+    """
     return _expect(params, lambda h: np.broadcast_to(h, (len(SHAPE_NAMES), h.size)))
 
 
 def canopy_cover(params) -> float:
-    """Fraction of ground under at least one crown: 1 − exp(−λ·E[π Rc²])."""
+    """Fraction of ground under at least one crown.
+
+    Parameters
+    ----------
+    params : StandParams
+
+    Returns
+    -------
+    float
+        c = 1 − exp(−λ·E[π Rc²]) (:func:`forward.poisson_stand.cover_from_density`).
+    """
     area = _expect(
         params,
         lambda h: np.broadcast_to(np.pi * params.crown_radius(h) ** 2, (len(SHAPE_NAMES), h.size)),
     )
-    return float(-np.expm1(-params.density_per_m2 * area))
+    return float(poisson_stand.cover_from_density(params.density_per_m2, area))
 
 
 def _crown_volume(params, h):
@@ -57,15 +79,37 @@ def _crown_volume(params, h):
 
 
 def crown_volume_per_ha(params) -> float:
-    """Crown volume (m³/ha)."""
-    return params.density * _expect(params, lambda h: _crown_volume(params, h))
+    """Crown volume per hectare.
+
+    Parameters
+    ----------
+    params : StandParams
+
+    Returns
+    -------
+    float (m³/ha)
+        λ·E[v_s·π Rc²·Lc] with λ in stems/ha (:func:`forward.poisson_stand.crown_volume`).
+    """
+    volume = _expect(params, lambda h: _crown_volume(params, h))
+    return poisson_stand.crown_volume(params.density, volume, 1.0)
 
 
 def leaf_area_index(params) -> float:
-    """One-sided leaf area index (m²/m²): crowns (FAVD × volume) plus understory."""
+    """One-sided leaf area index of crowns plus understory.
+
+    Parameters
+    ----------
+    params : StandParams
+
+    Returns
+    -------
+    float (m²/m²)
+        λ·E[FAVD_s·v_s·π Rc²·Lc] (:func:`forward.poisson_stand.lai_from_foliage`) plus the
+        understory LAI.
+    """
     favd = params.favd_by_shape()[:, None]
-    crowns = params.density_per_m2 * _expect(params, lambda h: favd * _crown_volume(params, h))
-    return crowns + params.understory_lai
+    foliage = _expect(params, lambda h: favd * _crown_volume(params, h))
+    return poisson_stand.lai_from_foliage(params.density_per_m2, foliage) + params.understory_lai
 
 
 #: Plant area index (m²/m²): equal to the LAI here, since no wood is modelled.
@@ -73,7 +117,20 @@ plant_area_index = leaf_area_index
 
 
 def crown_volume_profile(params, z) -> np.ndarray:
-    """Crown volume per unit ground area and unit height at heights ``z`` (m³/m²/m)."""
+    """Crown volume per unit ground area and unit height.
+
+    Parameters
+    ----------
+    params : StandParams
+    z : float or array (m)
+        Heights above the ground.
+
+    Returns
+    -------
+    array (m³/m²/m), shape (len(z),)
+        λ·Σ_s ∫ f_s(h)·π Rc(h)²·a_s((z − (h − Lc))/Lc) dh, a_s the shape's horizontal
+        section at a fraction of the crown length (:meth:`forward.crowns.CrownShape.section`).
+    """
     z = np.atleast_1d(np.asarray(z, float))
     h = _height_grid(params)
     f = _shape_densities(params, h)
@@ -93,8 +150,20 @@ def _survival(params, h):
 
 
 def dominant_height(params, top_per_ha=100.0) -> float:
-    """Mean height (m) of the ``top_per_ha`` tallest stems per hectare (all stems if the
-    density is lower)."""
+    """Mean height of the tallest stems.
+
+    Parameters
+    ----------
+    params : StandParams
+    top_per_ha : float (stems/ha)
+        How many of the tallest stems per hectare to average.
+
+    Returns
+    -------
+    float (m)
+        The mean height of the ``top_per_ha`` tallest stems per hectare: E[h | h ≥ h*]
+        with S(h*) = top_per_ha / density; the mean height if the density is lower.
+    """
     if params.density <= top_per_ha:
         return mean_height(params)
     h = _height_grid(params)
@@ -106,11 +175,21 @@ def dominant_height(params, top_per_ha=100.0) -> float:
 
 
 def expected_max_height(params, footprint_diameter_m) -> float:
-    """Expected height (m) of the tallest tree with its stem in a disc of diameter D (m).
+    """Expected height of the tallest tree with its stem in a disc.
 
-    With N ~ Poisson(λA), P(max ≤ h) = exp(−λA·S(h)) with S the height survival function,
-    and the tallest of no trees counted as 0, E[max] = ∫_0^∞ (1 − exp(−λA·S(h))) dh.
+    Parameters
+    ----------
+    params : StandParams
+    footprint_diameter_m : float (m)
+        Diameter D of the disc.
+
+    Returns
+    -------
+    float (m)
+        E[max] = ∫_0^∞ (1 − exp(−λA·S(h))) dh, A = πD²/4, the tallest of no trees counted
+        as 0 (:func:`forward.poisson_stand.tallest_above`).
     """
     area = np.pi * footprint_diameter_m**2 / 4.0
     h = np.linspace(0.0, _height_grid(params)[-1], _GRID)
-    return float(np.trapezoid(-np.expm1(-params.density_per_m2 * area * _survival(params, h)), h))
+    above = poisson_stand.tallest_above(params.density_per_m2 * area, _survival(params, h))
+    return float(np.trapezoid(above, h))

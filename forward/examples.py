@@ -1,37 +1,67 @@
-"""Built-in example scenes, chosen through the :data:`EXAMPLES` registry."""
+"""Built-in example stands and scenes, in one place.
 
-from dataclasses import dataclass, field
+Parameterised stands (:class:`~forward.stand_params.StandParams`): a generic conifer
+stand (:func:`example_stand`), the stands of :data:`EXAMPLE_STANDS` (e.g. ``gedi-mixed``,
+the stand of ``lidarinv invert --example``) and the stands of Sun & Ranson (2000)
+(:mod:`forward.paper_stands`). Explicit scenes (:class:`~forward.scene.ExampleScene`, a
+stem map with its instrument and footprints) are chosen through the :data:`EXAMPLES`
+registry (``lidarinv simulate --example``).
+"""
 
 import numpy as np
 
 from .allometry import SPECIES_ALLOMETRY
-from .instrument import Instrument, instrument_preset
-from .scene import Ground
+from .instrument import instrument_preset
+from .paper_stands import SUCCESSIONAL, successional_scene
+from .scene import ExampleScene
 from .stand import Stand
+from .stand_params import StandParams
+
+#: Values of a generic conifer stand (600 stems/ha, heights 15 ± 3 m) for examples and
+#: tests; every other field keeps its :class:`StandParams` default.
+EXAMPLE_VALUES = {
+    "density": 600.0,
+    "height_mean": 15.0,
+    "height_sd": 3.0,
+    "crown_length_ratio": 0.5,
+    "crown_radius_slope": 0.12,
+    "favd": 0.8,
+}
 
 
-@dataclass(frozen=True)
-class ExampleScene:
-    """A stand with the instrument and footprints it is meant to be seen with.
+def example_stand(**changes) -> StandParams:
+    """A generic conifer stand (:data:`EXAMPLE_VALUES`) with changes.
 
-    Attributes
+    Parameters
     ----------
-    stand : Stand
-    instrument : Instrument
-    centers : array (n, 2) (m)
-        Footprint centres in stand coordinates.
-    ground : Ground
-    canopy_reflectance : float
-        ρv.
-    description : str
-    """
+    **changes
+        StandParams fields replacing the example's.
 
-    stand: Stand
-    instrument: Instrument
-    centers: np.ndarray
-    ground: Ground = field(default_factory=Ground)
-    canopy_reflectance: float = 0.45
-    description: str = ""
+    Returns
+    -------
+    StandParams
+    """
+    return StandParams(**{**EXAMPLE_VALUES, **changes})
+
+
+#: Parameterised example stands by name: ``gedi-mixed`` is a mixed cone/ellipsoid stand
+#: with an understory, truncated-normal heights 16 ± 3 m (truncated at ±2 sd), seen by
+#: GEDI in ``lidarinv invert --example gedi-mixed``.
+EXAMPLE_STANDS = {
+    "gedi-mixed": StandParams(
+        density=600.0,
+        height_mean=16.0,
+        height_sd=3.0,
+        height_family="truncnorm",
+        height_truncation=2.0,
+        shape_mix={"cone": 0.6, "ellipsoid": 0.4},
+        favd=0.6,
+        understory_height=1.0,
+        understory_lai=0.3,
+        canopy_reflectance=0.45,
+        ground_reflectance=0.3,
+    ),
+}
 
 
 def jack_pine(shape="hemi-ellipsoid", seed=1993) -> ExampleScene:
@@ -45,6 +75,22 @@ def jack_pine(shape="hemi-ellipsoid", seed=1993) -> ExampleScene:
     about 165 m³ of cone or 330 m³ of ellipsoid crown in a 10 m footprint, against the
     paper's 180 and 310 m³), the nine footprint centres on a 10 m grid from (15, 15) m,
     ρv = 0.45 and ρg = 0.3.
+
+    Parameters
+    ----------
+    shape : str
+        The crown shape of every tree.
+    seed : int
+        Seed of the stem map.
+
+    Returns
+    -------
+    ExampleScene
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626.
     """
     rng = np.random.default_rng(seed)
     n = 1900
@@ -72,23 +118,30 @@ def jack_pine(shape="hemi-ellipsoid", seed=1993) -> ExampleScene:
     )
 
 
-#: Example name → factory returning an :class:`ExampleScene`.
+#: Example name → factory returning an :class:`~forward.scene.ExampleScene`.
 EXAMPLES = {
     "jack-pine": jack_pine,
-    # successional stands of forward.paper_stands (imported lazily: it imports this module)
-    **{
-        f"successional-{age}": (
-            lambda age=age: __import__(
-                "forward.paper_stands", fromlist=["successional_scene"]
-            ).successional_scene(age)
-        )
-        for age in (5, 20, 60, 200)
-    },
+    **{f"successional-{age}": (lambda age=age: successional_scene(age)) for age in SUCCESSIONAL},
 }
 
 
 def example(name: str) -> ExampleScene:
-    """The built-in example ``name``."""
+    """The built-in example scene ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`EXAMPLES`.
+
+    Returns
+    -------
+    ExampleScene
+
+    Raises
+    ------
+    ValueError
+        For an unknown name, naming the known ones.
+    """
     try:
         return EXAMPLES[name]()
     except KeyError:

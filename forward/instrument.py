@@ -70,8 +70,44 @@ class Instrument:
         """k·G·Ω: optical depth per unit foliage area (m²/m²)."""
         return self.hotspot_k * self.leaf_projection * self.clumping
 
+    @property
+    def footprint_effective_area_m2(self) -> float:
+        """Effective area (∫w)²/∫w² = 4πσf² (m²) of the Gaussian footprint: the area of a
+        uniform footprint whose mean over a random field has the same variance."""
+        return 4.0 * np.pi * float(self.footprint_sigma_m) ** 2
+
+    def footprint_weight(self, squared_distance):
+        """The footprint's weight at squared distance r² (m²) from the beam centre.
+
+        Parameters
+        ----------
+        squared_distance : float or array (m²)
+
+        Returns
+        -------
+        float or array (1/m²)
+            :func:`gaussian_footprint_weight` of the instrument's σf.
+        """
+        return gaussian_footprint_weight(squared_distance, self.footprint_sigma_m)
+
     def with_overrides(self, **changes) -> "Instrument":
-        """A copy with fields replaced; ``pulse_fwhm_ns`` and ``footprint_diameter_m`` too."""
+        """A copy with fields replaced.
+
+        Parameters
+        ----------
+        **changes
+            Instrument fields, and ``pulse_fwhm_ns`` (a Gaussian pulse, ns) or
+            ``footprint_diameter_m`` (the 1/e² diameter 4σf, m); None values are ignored.
+
+        Returns
+        -------
+        Instrument
+
+        Raises
+        ------
+        TypeError
+            Naming unknown settings.
+        """
         if changes.get("pulse_fwhm_ns") is not None:
             changes["pulse"] = GaussianPulse(changes.pop("pulse_fwhm_ns"))
         if changes.get("footprint_diameter_m") is not None:
@@ -83,6 +119,12 @@ class Instrument:
         return replace(self, **changes)
 
     def describe(self) -> dict:
+        """The instrument's settings, for stored outputs.
+
+        Returns
+        -------
+        dict
+        """
         return {
             "instrument": self.name,
             "bin_ns": self.bin_ns,
@@ -93,6 +135,35 @@ class Instrument:
             "hotspot_k": self.hotspot_k,
             **self.pulse.describe(),
         }
+
+
+def gaussian_footprint_weight(squared_distance, sigma):
+    """Weight of a Gaussian footprint of sd ``sigma`` (m) at squared distance r² (m²).
+
+    Parameters
+    ----------
+    squared_distance : float or array (m²)
+        r² from the beam centre.
+    sigma : float (m)
+        σf.
+
+    Returns
+    -------
+    float or array (1/m²)
+        w(r) = exp(−r²/2σf²)/(2πσf²), of unit integral over the plane (physics
+        conventions, "Footprint").
+    """
+    s2 = sigma * sigma
+    return np.exp(-0.5 * squared_distance / s2) / (2.0 * np.pi * s2)
+
+
+#: k·G·Ω of the :class:`Instrument` defaults (a complete hot spot, spherical leaf angles,
+#: random foliage), where no instrument is given.
+DEFAULT_EXTINCTION_PER_FAVD = (
+    Instrument.__dataclass_fields__["hotspot_k"].default
+    * Instrument.__dataclass_fields__["leaf_projection"].default
+    * Instrument.__dataclass_fields__["clumping"].default
+)
 
 
 def _slicer():
@@ -117,7 +188,24 @@ INSTRUMENT_PRESETS = {"slicer": _slicer, "lvis": _lvis, "gedi": _gedi}
 
 
 def instrument_preset(name: str, **overrides) -> Instrument:
-    """A preset instrument (``slicer``, ``lvis``, ``gedi``) with optional overrides."""
+    """A preset instrument with optional overrides.
+
+    Parameters
+    ----------
+    name : str
+        ``slicer``, ``lvis`` or ``gedi`` (:data:`INSTRUMENT_PRESETS`).
+    **overrides
+        As :meth:`Instrument.with_overrides` takes them.
+
+    Returns
+    -------
+    Instrument
+
+    Raises
+    ------
+    ValueError
+        For an unknown preset.
+    """
     try:
         factory = INSTRUMENT_PRESETS[name.lower()]
     except KeyError:

@@ -28,6 +28,8 @@ Successional stands, ages 5, 20, 60 and 200 years (Sec. III, V-B, VI-B)
 import numpy as np
 
 from .instrument import instrument_preset
+from .realise import realise, scene_extras
+from .scene import ExampleScene
 from .stand_params import StandParams
 
 #: The BOREAS old jack pine stand as :class:`StandParams` values (see above), less the shape.
@@ -47,12 +49,29 @@ JACK_PINE = {
 
 
 def jack_pine_params(shape="hemi-ellipsoid") -> StandParams:
-    """The BOREAS old jack pine stand (one crown shape for all trees)."""
+    """The BOREAS old jack pine stand, one crown shape for all trees.
+
+    Parameters
+    ----------
+    shape : str or dict
+        Crown shape (or mix).
+
+    Returns
+    -------
+    StandParams
+        :data:`JACK_PINE` with the shape.
+    """
     return StandParams(shape_mix=shape, **JACK_PINE)
 
 
 def jack_pine_instrument():
-    """SLICER as simulated by the paper: 4 ns pulse, 0.112 m bins, 10 m footprint."""
+    """SLICER as simulated by the paper.
+
+    Returns
+    -------
+    Instrument
+        4 ns pulse, 0.112 m bins, 10 m footprint (the ``slicer`` preset).
+    """
     return instrument_preset("slicer")
 
 
@@ -73,11 +92,25 @@ def _deciduous_mix(fraction):
 
 
 def successional_params(age, shape=None) -> StandParams:
-    """The successional stand of ``age`` years (5, 20, 60 or 200).
+    """The successional stand of an age.
 
-    Cohort 1 is the upper tier, cohort 2 the lower; ``shape`` replaces both shape mixes
-    by one crown shape (the paper's Fig. 10); by default conifers are cones and deciduous
-    trees ellipsoids.
+    Parameters
+    ----------
+    age : int
+        5, 20, 60 or 200 (years).
+    shape : str, optional
+        One crown shape for both cohorts (the paper's Fig. 10); by default conifers are
+        cones and deciduous trees ellipsoids.
+
+    Returns
+    -------
+    StandParams
+        Cohort 1 is the upper tier, cohort 2 the lower (:data:`SUCCESSIONAL`).
+
+    Raises
+    ------
+    ValueError
+        For another age.
     """
     try:
         density, upper, (m1, s1), (m2, s2), deciduous1, deciduous2 = SUCCESSIONAL[int(age)]
@@ -107,19 +140,37 @@ def successional_params(age, shape=None) -> StandParams:
 
 
 def successional_instrument():
-    """10 ns Gaussian pulse, 25 m (1/e²) footprint, 1 ns bins."""
+    """The instrument of the successional stands.
+
+    Returns
+    -------
+    Instrument
+        10 ns Gaussian pulse, 25 m (1/e²) footprint, 1 ns bins.
+    """
     return instrument_preset("lvis", pulse_fwhm_ns=10.0, footprint_diameter_m=25.0)
 
 
 def successional_scene(age, shape=None, seed=None, plot_m=60.0):
-    """An explicit realisation of a successional stand as an ``ExampleScene``.
+    """An explicit realisation of a successional stand.
 
     Stems are a Poisson pattern on a ``plot_m`` square (larger than the paper's 30 m ZELIG
     plot, so that the Gaussian footprint sees no empty margin), one footprint at its centre.
-    """
-    from .examples import ExampleScene  # the registry module imports this one lazily
-    from .realise import realise, scene_extras
 
+    Parameters
+    ----------
+    age : int
+        5, 20, 60 or 200 (years).
+    shape : str, optional
+        As :func:`successional_params`.
+    seed : int, optional
+        Seed of the stem map; 2000 + age by default.
+    plot_m : float (m)
+        Side of the plot.
+
+    Returns
+    -------
+    forward.scene.ExampleScene
+    """
     params = successional_params(age, shape)
     rng = np.random.default_rng(2000 + int(age) if seed is None else seed)
     stand = realise(params, plot_m, rng)
@@ -132,9 +183,3 @@ def successional_scene(age, shape=None, seed=None, plot_m=60.0):
         canopy_reflectance=rho_v,
         description=f"{age}-year successional stand, Howland ME (Sun & Ranson 2000, Fig. 9)",
     )
-
-
-#: Example name → factory, for :data:`forward.examples.EXAMPLES`.
-SUCCESSIONAL_EXAMPLES = {
-    f"successional-{age}": (lambda age=age: successional_scene(age)) for age in SUCCESSIONAL
-}

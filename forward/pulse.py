@@ -30,18 +30,57 @@ class GaussianPulse:
         return ns_to_height(self.fwhm_ns) / FWHM_PER_SIGMA
 
     def pdf(self, d):
+        """Pulse density at height offsets.
+
+        Parameters
+        ----------
+        d : float or array (m)
+            d = z_sample − z_scatterer.
+
+        Returns
+        -------
+        float or array (1/m)
+            exp(−d²/2σz²)/(σz·√(2π)), of unit area.
+        """
         s = self.sigma_m
         return np.exp(-0.5 * (np.asarray(d) / s) ** 2) / (s * np.sqrt(2 * np.pi))
 
     def cdf(self, d):
+        """Pulse area below height offsets.
+
+        Parameters
+        ----------
+        d : float or array (m)
+
+        Returns
+        -------
+        float or array
+            Φ(d/σz).
+        """
         return ndtr(np.asarray(d) / self.sigma_m)
 
     def support(self, tolerance):
-        """Offsets (m) outside which each tail holds less than ``tolerance`` of the area."""
+        """Offsets outside which each tail holds less than ``tolerance`` of the area.
+
+        Parameters
+        ----------
+        tolerance : float
+
+        Returns
+        -------
+        (float, float) (m)
+            ∓σz·Φ⁻¹(tolerance).
+        """
         half = -ndtri(tolerance) * self.sigma_m
         return -half, half
 
     def describe(self) -> dict:
+        """The pulse's settings, for stored outputs.
+
+        Returns
+        -------
+        dict
+        """
         return {"pulse": "gaussian", "pulse_fwhm_ns": self.fwhm_ns}
 
 
@@ -86,9 +125,30 @@ class MeasuredPulse:
         object.__setattr__(self, "_cumulative", cumulative / cumulative[-1])
 
     def pdf(self, d):
+        """Pulse density at height offsets, linear between the samples.
+
+        Parameters
+        ----------
+        d : float or array (m)
+
+        Returns
+        -------
+        float or array (1/m)
+            Zero outside the sampled span.
+        """
         return np.interp(d, self._offsets, self._density, left=0.0, right=0.0)
 
     def cdf(self, d):
+        """Pulse area below height offsets: the exact integral of the linear interpolant.
+
+        Parameters
+        ----------
+        d : float or array (m)
+
+        Returns
+        -------
+        float or array
+        """
         d = np.clip(np.asarray(d, float), self._offsets[0], self._offsets[-1])
         k = np.clip(np.searchsorted(self._offsets, d, side="right") - 1, 0, self._offsets.size - 2)
         step = self._offsets[k + 1] - self._offsets[k]
@@ -97,25 +157,106 @@ class MeasuredPulse:
         return self._cumulative[k] + step * (p0 * t + 0.5 * (p1 - p0) * t * t)
 
     def support(self, tolerance):
+        """The sampled span of the pulse (finite support).
+
+        Parameters
+        ----------
+        tolerance : float
+            Ignored.
+
+        Returns
+        -------
+        (float, float) (m)
+        """
         del tolerance  # the measured pulse has finite support
         return float(self._offsets[0]), float(self._offsets[-1])
 
     def describe(self) -> dict:
+        """The pulse's settings, for stored outputs.
+
+        Returns
+        -------
+        dict
+        """
         return {"pulse": "measured", "pulse_sample_ns": self.sample_ns}
 
 
 PULSE_TYPES = {"gaussian": GaussianPulse, "measured": MeasuredPulse}
 
 
+def support_bins(heights, centres, support):
+    """First and last-plus-one bin whose height lies within a pulse's support of some
+    centre.
+
+    Parameters
+    ----------
+    heights : array (m)
+        Ascending bin heights.
+    centres : array (m)
+        Heights of the point scatterers (e.g. each row's ground).
+    support : (float, float) (m)
+        Offsets below and above a centre beyond which the pulse is taken as zero
+        (``pulse.support(tolerance)``).
+
+    Returns
+    -------
+    (int, int)
+    """
+    low, high = support
+    centres = np.asarray(centres)
+    first = max(int(np.searchsorted(heights, centres.min() + low)), 0)
+    last = int(np.searchsorted(heights, centres.max() + high, side="right"))
+    return first, last
+
+
+def point_returns(pulse, heights, centres, weights, support):
+    """Samples of point scatterers: a weighted, point-sampled pulse per centre.
+
+    Parameters
+    ----------
+    pulse : GaussianPulse or MeasuredPulse
+    heights : array (m)
+        Ascending bin heights, shape (bins,).
+    centres : array (m)
+        Height of each scatterer, shape (n,).
+    weights : array
+        Return energy of each scatterer times the bin height (e.g. ρg·P(0)·Δz, m), (n,).
+    support : (float, float) (m)
+        Offsets beyond which the pulse is taken as zero (``pulse.support(tolerance)``).
+
+    Returns
+    -------
+    array, shape (n, bins)
+        weights[r]·pulse(heights − centres[r]) within the support bins of the batch
+        (:func:`support_bins`), zero outside.
+
+    Notes
+    -----
+    A flat surface at height z_g returns w·Δz·p(z_j − z_g) in bin j (physics conventions,
+    "Pulse and digitiser"): the pulse p of unit area, point-sampled at the bin centre
+    z_j, times the bin height Δz. The ground of both waveform models is this pulse.
+    """
+    centres = np.asarray(centres, float)
+    out = np.zeros((centres.size, np.size(heights)))
+    first, last = support_bins(heights, centres, support)
+    if last > first:
+        shape = pulse.pdf(heights[None, first:last] - centres[:, None])
+        out[:, first:last] = np.asarray(weights, float)[:, None] * shape
+    return out
+
+
 def layer_kernel(pulse, bin_height, oversampling, tolerance):
     """Response of output samples to unit energy spread uniformly over one fine layer.
 
-    Fine layers of thickness ``h = bin_height / oversampling`` tile the height axis with
-    their edges on the digitiser bin edges. For a bin whose centre lies ``q`` layers above
-    the layer (``q = j·m − i`` in global indices), the sample is
-    ``Δz/h · [C(d + h/2) − C(d − h/2)]`` with ``d = (q + (m − 1)/2)·h`` and ``C`` the pulse
-    CDF: the exact convolution of a uniform layer with the pulse, point-sampled at the bin
-    centre and multiplied by Δz.
+    Parameters
+    ----------
+    pulse : GaussianPulse or MeasuredPulse
+    bin_height : float (m)
+        Δz.
+    oversampling : int
+        Fine layers per bin, m; a layer is h = Δz/m thick.
+    tolerance : float
+        Pulse tail left out (``pulse.support(tolerance)``).
 
     Returns
     -------
@@ -123,6 +264,14 @@ def layer_kernel(pulse, bin_height, oversampling, tolerance):
         Offset of the first kernel tap.
     taps : array
         Kernel values for offsets ``q_min, q_min + 1, …``.
+
+    Notes
+    -----
+    Fine layers tile the height axis with their edges on the digitiser bin edges. For a
+    bin whose centre lies ``q`` layers above the layer (``q = j·m − i`` in global indices),
+    the sample is Δz/h · [C(d + h/2) − C(d − h/2)] with d = (q + (m − 1)/2)·h and C the
+    pulse CDF: the exact convolution of a uniform layer with the pulse, point-sampled at
+    the bin centre and multiplied by Δz.
     """
     m = int(oversampling)
     h = bin_height / m

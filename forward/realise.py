@@ -65,7 +65,22 @@ POINT_PATTERNS = {"poisson": _poisson, "thomas": _thomas, "hardcore": _hardcore}
 
 
 def draw_heights(params, n, rng):
-    """Heights (m) and shape codes of ``n`` trees drawn from the cohorts of ``params``."""
+    """Heights and shapes of trees drawn from a stand's cohorts.
+
+    Parameters
+    ----------
+    params : StandParams
+    n : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    height : array (n,) (m)
+        Each tree's cohort drawn by its weight, then its height from the cohort's
+        distribution.
+    shape : array of int8 (n,)
+        Shape codes drawn from the cohort's mix.
+    """
     cohorts = params.cohorts()
     weights = np.array([w for w, _, _ in cohorts])
     which = rng.choice(len(cohorts), size=n, p=weights / weights.sum())
@@ -127,7 +142,21 @@ def realise(params, area, rng, pattern="poisson", origin=(0.0, 0.0), **options) 
 
 
 def scene_extras(params):
-    """``(ground, understory, canopy_reflectance)`` for the explicit engine."""
+    """What the explicit engine needs of a stand beyond its stem map.
+
+    Parameters
+    ----------
+    params : StandParams
+
+    Returns
+    -------
+    ground : Ground
+        Flat, with the stand's ground reflectance.
+    understory : UniformUnderstory or None
+        None where the understory LAI is 0.
+    canopy_reflectance : float
+        ρv.
+    """
     understory = (
         UniformUnderstory(params.understory_height, params.understory_lai)
         if params.understory_lai > 0

@@ -1,6 +1,7 @@
-"""Ground plane and the uniform understory layer."""
+"""Ground plane, the uniform understory layer, and a scene: a stand with the instrument
+and footprints it is seen with."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,7 +37,17 @@ class Ground:
         return self.slope_deg == 0.0
 
     def elevation(self, dx, dy):
-        """Ground height (m) at offsets (dx, dy) from the beam centre."""
+        """Ground height at offsets from the beam centre.
+
+        Parameters
+        ----------
+        dx, dy : float or array (m)
+
+        Returns
+        -------
+        float or array (m)
+            tan(slope)·(cos(aspect)·dx + sin(aspect)·dy); zeros on flat ground.
+        """
         if self.is_flat:
             return np.zeros(np.broadcast(dx, dy).shape)
         gradient = np.tan(np.radians(self.slope_deg))
@@ -69,3 +80,27 @@ class UniformUnderstory:
     def favd(self) -> float:
         """Foliage area volume density of the layer (m²/m³)."""
         return self.lai / self.height
+
+
+@dataclass(frozen=True)
+class ExampleScene:
+    """A stand with the instrument and footprints it is meant to be seen with.
+
+    Attributes
+    ----------
+    stand : forward.stand.Stand
+    instrument : forward.instrument.Instrument
+    centers : array (n, 2) (m)
+        Footprint centres in stand coordinates.
+    ground : Ground
+    canopy_reflectance : float
+        ρv.
+    description : str
+    """
+
+    stand: object
+    instrument: object
+    centers: np.ndarray
+    ground: Ground = field(default_factory=Ground)
+    canopy_reflectance: float = 0.45
+    description: str = ""

@@ -93,7 +93,20 @@ class Stand:
     # construction -------------------------------------------------------------------
     @classmethod
     def from_arrays(cls, *, shape="ellipsoid", **columns):
-        """Build a stand from keyword arrays; ``shape`` may be names or one name for all."""
+        """Build a stand from keyword arrays.
+
+        Parameters
+        ----------
+        shape : str or array
+            Shape names (or codes), or one name for all trees.
+        **columns
+            ``x``, ``y``, ``height``, ``crown_length``, ``crown_radius`` (m), ``favd``
+            (m²/m³, one value or one per tree), optional ``dbh`` (cm) and ``species``.
+
+        Returns
+        -------
+        Stand
+        """
         n = np.size(columns["x"])
         shapes = np.broadcast_to(np.asarray(shape), (n,)) if np.ndim(shape) == 0 else shape
         favd = np.asarray(columns.pop("favd"), float)
@@ -108,15 +121,33 @@ class Stand:
 
     @classmethod
     def empty(cls):
-        """A stand without trees (a bare-ground scene)."""
+        """A stand without trees (a bare-ground scene).
+
+        Returns
+        -------
+        Stand
+        """
         return cls(*(np.zeros(0) for _ in range(5)), shape=np.zeros(0, np.int8), favd=np.zeros(0))
 
     @classmethod
     def from_csv(cls, path):
         """Read a stem map from CSV.
 
-        Columns ``x, y, height, crown_length, crown_radius, shape, favd`` are required,
-        ``dbh`` and ``species`` optional; lengths in m, FAVD in m²/m³, DBH in cm.
+        Parameters
+        ----------
+        path : path
+            Columns ``x, y, height, crown_length, crown_radius, shape, favd`` are required,
+            ``dbh`` and ``species`` optional; lengths in m, FAVD in m²/m³, DBH in cm; lines
+            starting with ``#`` are comments.
+
+        Returns
+        -------
+        Stand
+
+        Raises
+        ------
+        ValueError
+            Naming the file and the problem.
         """
         path = Path(path)
         with path.open(newline="") as handle:
@@ -142,7 +173,12 @@ class Stand:
             raise ValueError(f"{path}: {error}") from None
 
     def to_csv(self, path):
-        """Write the stem map as CSV (the layout :meth:`from_csv` reads)."""
+        """Write the stem map as CSV (the layout :meth:`from_csv` reads).
+
+        Parameters
+        ----------
+        path : path
+        """
         with Path(path).open("w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow((*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS))
@@ -182,19 +218,55 @@ class Stand:
         return self.favd * self.crown_volume
 
     def subset(self, index) -> "Stand":
-        """The trees selected by a boolean mask or an index array."""
+        """The trees selected by a boolean mask or an index array.
+
+        Parameters
+        ----------
+        index : array of bool or int
+
+        Returns
+        -------
+        Stand
+        """
         return replace(self, **{n: getattr(self, n)[index] for n in _ALL_COLUMNS})
 
     def translated(self, dx, dy) -> "Stand":
-        """The same stand moved by (dx, dy) metres."""
+        """The same stand moved.
+
+        Parameters
+        ----------
+        dx, dy : float (m)
+
+        Returns
+        -------
+        Stand
+        """
         return replace(self, x=self.x + dx, y=self.y + dy)
 
     def with_shape(self, name) -> "Stand":
-        """The same stand with every crown given one shape (the paper's Fig. 6 and 10)."""
+        """The same stand with every crown given one shape (the paper's Fig. 6 and 10).
+
+        Parameters
+        ----------
+        name : str
+
+        Returns
+        -------
+        Stand
+        """
         return replace(self, shape=shape_codes(np.full(self.n_trees, name)))
 
     def with_favd(self, favd) -> "Stand":
-        """The same stand with FAVD (m²/m³) replaced by a scalar or an array."""
+        """The same stand with its FAVD replaced.
+
+        Parameters
+        ----------
+        favd : float or array (m²/m³)
+
+        Returns
+        -------
+        Stand
+        """
         return replace(self, favd=np.broadcast_to(np.asarray(favd, float), (self.n_trees,)).copy())
 
 

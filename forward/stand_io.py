@@ -18,8 +18,15 @@ _UNITS = {
 
 
 def write_stand(group: h5py.Group, stand: Stand) -> None:
-    """Store ``stand`` in an open HDF5 group.
+    """Store a stand in an open HDF5 group.
 
+    Parameters
+    ----------
+    group : h5py.Group
+    stand : Stand
+
+    Notes
+    -----
     Layout: float64 datasets ``x, y, height, crown_length, crown_radius, favd, dbh`` with a
     ``units`` attribute; ``shape`` as int8 codes with the attribute ``shape_names`` giving
     the name of each code; ``species`` as UTF-8 strings.
@@ -34,7 +41,21 @@ def write_stand(group: h5py.Group, stand: Stand) -> None:
 
 
 def read_stand(group: h5py.Group) -> Stand:
-    """Read a stand written by :func:`write_stand`; shape codes are remapped by name."""
+    """Read a stand written by :func:`write_stand`; shape codes are remapped by name.
+
+    Parameters
+    ----------
+    group : h5py.Group
+
+    Returns
+    -------
+    Stand
+
+    Raises
+    ------
+    ValueError
+        Naming the missing datasets.
+    """
     missing = [name for name in REQUIRED_COLUMNS if name not in group]
     if missing:
         raise ValueError(f"HDF5 group {group.name!r} lacks stand dataset(s) {missing}")
@@ -52,7 +73,14 @@ def read_stand(group: h5py.Group) -> Stand:
 
 
 def save_stand(path, stand: Stand, group="stand") -> None:
-    """Write ``stand`` to an HDF5 file under ``group``."""
+    """Write a stand to an HDF5 file, replacing the group if present.
+
+    Parameters
+    ----------
+    path : path
+    stand : Stand
+    group : str
+    """
     with h5py.File(path, "a") as handle:
         if group in handle:
             del handle[group]
@@ -60,7 +88,22 @@ def save_stand(path, stand: Stand, group="stand") -> None:
 
 
 def load_stand(path, group="stand") -> Stand:
-    """Read a stand from an HDF5 file."""
+    """Read a stand from an HDF5 file.
+
+    Parameters
+    ----------
+    path : path
+    group : str
+
+    Returns
+    -------
+    Stand
+
+    Raises
+    ------
+    ValueError
+        Where the file has no such group.
+    """
     with h5py.File(path, "r") as handle:
         if group not in handle:
             raise ValueError(f"{path}: no group {group!r}; groups are {list(handle)}")

@@ -59,5 +59,11 @@ class Waveform:
         return self.canopy_energy + self.ground_energy
 
     def crown_volume_total(self) -> float:
-        """Footprint-weighted crown volume per unit ground area in the window (m)."""
+        """Footprint-weighted crown volume per unit ground area in the window.
+
+        Returns
+        -------
+        float (m)
+            The sum of ``crown_volume`` over the bins.
+        """
         return float(self.crown_volume.sum())

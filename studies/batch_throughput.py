@@ -12,7 +12,7 @@ loop over the same inversion, with no pool and no file, is the baseline for the 
 storing its results into a file on its own gives the coordinator's cost per shot, which
 caps the throughput however many workers there are. The inversion is
 ``lidarinv.inference.invert_shot`` with default settings, or with ``--fake`` the
-stand-in ``lidarinv.batch.fake.fake_invert`` (``--delay`` s per shot; 0 measures the
+stand-in ``tests.fake_inversion.fake_invert`` (``--delay`` s per shot; 0 measures the
 batch machinery alone).
 
     python studies/batch_throughput.py --fake [--shots 400] [--workers 1 2]
@@ -31,6 +31,7 @@ land and cloud-free is lower, so the figures are an upper bound.
 import argparse
 import json
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -40,8 +41,11 @@ import numpy as np
 
 import forward as fw
 from lidarinv.batch import ResultStore, invert_many
-from lidarinv.batch.fake import FakeSettings, fake_invert
 from lidarinv.observe import observe
+
+# the stand-in inversion is a test double (tests/fake_inversion.py), not installed
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from tests.fake_inversion import FakeSettings, fake_invert
 
 OUT = Path(__file__).parent / "output" / "batch_throughput.json"
 

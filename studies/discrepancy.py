@@ -5,9 +5,9 @@ realisations are simulated with the explicit engine, footprint at the plot centr
 bin, their spread around their mean is compared with that of a Poisson stand seen
 through the Gaussian footprint: relative variance 1/N(z) for the canopy, N(z) the
 footprint-weighted number of crowns spanning the bin's height
-(:meth:`lidarinv.inference.stand_mapping.StandMapping.crowns_spanning`), and the
+(:meth:`lidarinv.inference.model.stand.StandMapping.crowns_spanning`), and the
 gap-fraction spread (1 − P̄)/P̄ · ā/A for the ground return
-(:func:`lidarinv.inference.discrepancy.gap_cv2`). Reported: the ratio of measured to
+(:func:`forward.poisson_stand.footprint_gap_cv2`). Reported: the ratio of measured to
 Poisson variance at the deciles of the canopy bins, the median relative spread of the
 crown bins (the η of the ``discrepancy`` setting), and the ground return's measured and
 modelled relative spread.
@@ -32,10 +32,10 @@ from forward import derived
 from forward.engine import WaveformSimulator
 from forward.expected import ExpectedWaveformModel
 from forward.instrument import instrument_preset
+from forward.poisson_stand import crown_count, footprint_gap_cv2
 from forward.realise import realise, scene_extras
-from lidarinv.inference.discrepancy import footprint_area, gap_cv2
-from lidarinv.inference.stand_mapping import TOP_SDS, StandMapping, default_template
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS
+from lidarinv.examples import SYNTHETIC_SHOTS
+from lidarinv.inference.model.stand import TOP_SDS, StandMapping, default_template
 
 BASE = SYNTHETIC_SHOTS["gedi-mixed"].params
 STANDS = {
@@ -83,7 +83,7 @@ def main():
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     instrument = instrument_preset("gedi")
-    area = footprint_area(instrument.footprint_sigma_m)
+    area = instrument.footprint_effective_area_m2
     summary = {"realisations": args.realisations, "footprint_area_m2": area, "stands": {}}
     fig, axes = plt.subplots(1, len(STANDS), figsize=(4 * len(STANDS), 4.5), sharey=False)
     for ax, (name, params) in zip(axes, STANDS.items()):
@@ -96,13 +96,13 @@ def main():
         model = ExpectedWaveformModel(instrument, heights, params)
         understory_gap = np.exp(-instrument.extinction_per_favd * params.understory_lai)
         gap = model.evaluate(model.vector(params)).gap_ground / understory_gap
-        crown_area = -np.log1p(-derived.canopy_cover(params)) / (params.density * 1e-4)
+        crown_area = crown_count(derived.canopy_cover(params)) / (params.density * 1e-4)
         summary["stands"][name] = {
             "canopy_variance_ratio_deciles": np.percentile(ratio, np.arange(10, 100, 10)).tolist(),
             "median_crown_cv": float(np.median(np.sqrt(var[in_crowns]) / mean[in_crowns])),
             "max_crowns": float(crowns.max()),
             "ground_energy_cv": float(energy.std() / energy.mean()),
-            "ground_cv_model": float(np.sqrt(gap_cv2(gap, crown_area, area))[0]),
+            "ground_cv_model": float(np.sqrt(footprint_gap_cv2(gap, crown_area, area))[0]),
         }
         ax.plot(np.sqrt(var), heights, label="realisations sd")
         poisson = np.where(in_crowns, mean / np.sqrt(np.maximum(crowns, 1.0)), np.nan)

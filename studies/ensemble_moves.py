@@ -1,7 +1,7 @@
 """Autocorrelation time of emcee move mixtures on a correlated Gaussian, by walker count.
 
 The sampler's coordinates straighten the GEDI posterior until it is close to a Gaussian on
-most shots; this measures what each move mixture of :data:`lidarinv.inference.moves.MOVES`
+most shots; this measures what each move mixture of :data:`lidarinv.inference.sampling.moves.MOVES`
 does on an exact one (9 dimensions, like the 10-free configuration with the gain
 integrated out; a random covariance with condition number in the thousands). Reported per
 mixture and walker count: the largest τ (steps), the acceptance fraction, and the largest
@@ -24,7 +24,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from lidarinv.inference.moves import MOVES
+from lidarinv.inference.sampling.moves import MOVES
 
 #: Mixtures compared, by label.
 MIXTURES = {

@@ -1,6 +1,6 @@
 """Wall time per footprint to convergence (issue: Bayesian inversion).
 
-GEDI-like synthetic shots (explicit random stands, see :mod:`lidarinv.inference.synthetic`)
+GEDI-like synthetic shots (explicit random stands, see :mod:`lidarinv.examples`)
 are inverted on one core, BLAS threads pinned to 1, in two configurations: the default
 settings (13 free parameters) and ``10-free`` (baseline and noise σ held at the shot's
 estimates, crown-shape mix fixed at half cones). Reported per shot: wall time, steps,
@@ -34,15 +34,15 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
 from lidarinv.inference import (  # noqa: E402
     InversionSettings,
     SamplerSettings,
     build_problem,
     invert_shot,
 )
-from lidarinv.inference.discrepancy import DISCREPANCY_MODELS  # noqa: E402
-from lidarinv.inference.priors import DEFAULT_UNBOUNDED, UNBOUNDED_MAPS  # noqa: E402
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
+from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS  # noqa: E402
+from lidarinv.inference.model.prior_table import DEFAULT_UNBOUNDED, UNBOUNDED_MAPS  # noqa: E402
 
 TARGET_SECONDS = 10.0
 
@@ -121,7 +121,7 @@ def add_sampler_options(parser):
         "--moves",
         nargs="+",
         metavar="NAME=WEIGHT",
-        help="move mixture (names from lidarinv.inference.moves.MOVES); default the sampler's",
+        help="move mixture (names from lidarinv.inference.sampling.moves.MOVES); default the sampler's",
     )
     parser.add_argument(
         "--fit-steps",

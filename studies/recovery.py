@@ -42,17 +42,17 @@ import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
 from forward.stand_params import StandParams  # noqa: E402
+from lidarinv.examples import ShotRecipe, synthetic_shot  # noqa: E402
 from lidarinv.inference import (  # noqa: E402
     InversionSettings,
     RealisationSettings,
     build_problem,
     invert_shot,
 )
-from lidarinv.inference.discrepancy import DISCREPANCY_MODELS, SIMULATED  # noqa: E402
-from lidarinv.inference.parameters import NUISANCE, STRUCTURE, default_space  # noqa: E402
-from lidarinv.inference.priors import Uniform  # noqa: E402
-from lidarinv.inference.stand_mapping import TOP_SDS, StandMapping, default_template  # noqa: E402
-from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot  # noqa: E402
+from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS, SIMULATED  # noqa: E402
+from lidarinv.inference.model.parameters import NUISANCE, STRUCTURE, default_space  # noqa: E402
+from lidarinv.inference.model.priors import Uniform  # noqa: E402
+from lidarinv.inference.model.stand import TOP_SDS, StandMapping, default_template  # noqa: E402
 from lidarinv.observe.analyse import analyse  # noqa: E402
 
 QUANTITIES = (

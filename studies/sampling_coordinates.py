@@ -2,7 +2,7 @@
 
 The same GEDI-like synthetic shots (explicit random stands) are sampled for a fixed number
 of steps in each set of ridge-straightening coordinates of
-:mod:`lidarinv.inference.coordinates` (``none``, ``cover-pai``, ``cover-pai+crown-base``,
+:mod:`lidarinv.inference.model.coordinates` (``none``, ``cover-pai``, ``cover-pai+crown-base``,
 ``cover-pai+ground-centroid``, ``all`` three),
 with the bounded priors mapped to the real line by the default logistic map, and in
 ``cover-pai/probit`` with the normal CDF instead.
@@ -45,12 +45,12 @@ from inversion_speed import (  # noqa: E402  (studies/ is the script's folder)
     sampler_changes,
 )
 
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
 from lidarinv.inference import InversionSettings, build_problem  # noqa: E402
-from lidarinv.inference.discrepancy import DISCREPANCY_MODELS  # noqa: E402
 from lidarinv.inference.invert import prepare_problem  # noqa: E402
+from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS  # noqa: E402
 from lidarinv.inference.posterior import BLOB_NAMES  # noqa: E402
 from lidarinv.inference.sampling import run_sampler  # noqa: E402
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
 
 #: Coordinate sets compared, by label: changes to InversionSettings (ridge coordinates and
 #: the map of bounded priors to the real line).

@@ -32,7 +32,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import forward as fw  # noqa: E402
-from forward import expected_numba  # noqa: E402
+from forward.backends import AVAILABLE as NUMBA_AVAILABLE  # noqa: E402
 from forward.expected import CONVERGED, ExpectedWaveformModel, ModelSettings  # noqa: E402
 from forward.stand_params import StandParams  # noqa: E402
 
@@ -136,7 +136,7 @@ def main():
     for radial, nodes, depth in grid:
         settings = ModelSettings(radial_nodes=radial, height_nodes=nodes, depth_nodes=depth)
         rows.append(measure(instrument, heights, template, settings, theta, ref, repeats))
-    backends = ["numpy"] + (["numba"] if expected_numba.AVAILABLE else [])
+    backends = ["numpy"] + (["numba"] if NUMBA_AVAILABLE else [])
     defaults = [
         measure(
             instrument,

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 import forward as fw
-from lidarinv.inference.priors import LogUniform, TruncatedNormal, Uniform
+from lidarinv.inference.model.priors import LogUniform, TruncatedNormal, Uniform
 
 
 def random_stand(rng, n=60, half_width=25.0, shapes=fw.SHAPE_NAMES, favd=0.8):

@@ -11,12 +11,12 @@ import pytest
 from tiny_results import tiny_result
 
 import lidarinv.inference
-from lidarinv.batch.fake import fake_observations
 from lidarinv.cli import build_parser, main
 from lidarinv.cli.batch import _settings as batch_settings
 from lidarinv.cli.outputs import save_group
 from lidarinv.inference import InversionResult
 from lidarinv.io import write_observations
+from tests.fake_inversion import fake_observations
 
 INVERT_EXAMPLE = ["invert", "--example", "gedi-mixed", "--quiet"]
 
@@ -171,7 +171,7 @@ def _batch_file(tmp_path, n=4, unreadable=()):
     return path
 
 
-FAKE = ["--workers", "1", "--no-progress", "--invert", "lidarinv.batch.fake:fake_invert"]
+FAKE = ["--workers", "1", "--no-progress", "--invert", "tests.fake_inversion:fake_invert"]
 
 
 def test_batch_exits_non_zero_when_a_shot_failed(tmp_path, capsys):
@@ -265,8 +265,8 @@ def test_local_workers_leave_ctrl_c_to_the_coordinator():
 
 
 def test_progress_bar_ends_full_and_says_converged_before_the_step_cap(capsys):
-    from lidarinv.inference.parameters import Parameter, ParameterSpace
-    from lidarinv.inference.priors import Uniform
+    from lidarinv.inference.model.priors import Uniform
+    from lidarinv.inference.model.space import Parameter, ParameterSpace
     from lidarinv.inference.sampling import SamplerSettings, run_sampler
 
     space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-10.0, 10.0)) for i in range(2))

@@ -5,11 +5,12 @@ import numpy as np
 import pytest
 
 import forward as fw
+from forward.examples import example_stand
 from forward.expected import CONVERGED, DEFAULT_FREE, ExpectedWaveformModel, ModelSettings
-from forward.expected_vectors import FIELD_INDEX, params_from_vector, physical_rows
+from forward.expected.vectors import FIELD_INDEX, params_from_vector, physical_rows
 from forward.realise import realise, scene_extras
 from forward.stand import Stand
-from forward.stand_params import HEIGHT_DISTRIBUTIONS, example_stand
+from forward.stand_params import HEIGHT_DISTRIBUTIONS
 
 INSTRUMENT = fw.instrument_preset("gedi", footprint_sigma_m=2.5)
 FREE = (*DEFAULT_FREE, "height_cap", "apex_density")

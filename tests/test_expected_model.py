@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import forward as fw
+from forward.examples import example_stand
 from forward.expected import (
     CONVERGED,
     DEFAULT_FREE,
@@ -15,7 +16,6 @@ from forward.expected import (
     ModelSettings,
 )
 from forward.realise import realise, scene_extras
-from forward.stand_params import example_stand
 
 INSTRUMENT = fw.instrument_preset("gedi", footprint_sigma_m=2.5)
 
@@ -258,29 +258,3 @@ def test_measured_pulse_replaces_gaussian():
     a = ExpectedWaveformModel(gauss, heights, params)(params)
     b = ExpectedWaveformModel(measured, heights, params)(params)
     assert np.abs(a - b).sum() / a.sum() < 2e-3
-
-
-def test_compiled_ground_return_equals_the_numpy_reference():
-    """The Gaussian-pulse ground kernel (exp by exact ratios from the peak) gives the numpy
-    pulse's samples, for grounds spread far wider than the pulse within one batch."""
-    from forward import expected_ground, expected_numba
-    from forward.pulse import GaussianPulse
-
-    rng = np.random.default_rng(4)
-    pulse, dz = GaussianPulse(14.0), 0.15
-    heights = -20.0 + dz * np.arange(600)
-    n = 40
-    zg = np.concatenate([rng.uniform(-1.0, 1.0, n - 4), [-12.0, 30.0, 0.037, 0.075]])
-    canopy = rng.uniform(0.0, 1e-3, (n, heights.size))
-    gap0, rho_v, rho_g = rng.uniform(0.01, 1.0, n), rng.uniform(0.1, 0.6, n), np.full(n, 0.4)
-    valid = rng.uniform(size=n) > 0.1
-    support = pulse.support(1e-12)
-    args = (gap0, zg, rho_v, rho_g, valid, heights, dz, pulse, support)
-    fast = expected_numba.gaussian_ground_return(canopy.copy(), *args)
-    slow = expected_ground.ground_return(canopy.copy(), *args)
-    for a, b in zip(fast, slow):
-        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15 * b.max())
-    ground = slow[2]
-    assert np.all(ground[~valid] == 0.0) and ground[valid].sum(axis=1).min() > 0.0
-    # each valid row's ground holds ρg·E[P(0)] (the pulse resolved, its support inside)
-    np.testing.assert_allclose(ground[valid].sum(axis=1), (rho_g * gap0)[valid], rtol=1e-9)

@@ -5,25 +5,20 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from forward import derived
+from forward import derived, poisson_stand
 from forward.engine import WaveformSimulator
 from forward.expected import ExpectedWaveformModel
 from forward.instrument import instrument_preset
 from forward.realise import realise, scene_extras
-from lidarinv.inference import InversionSettings, build_problem
-from lidarinv.inference.discrepancy import (
-    DISCREPANCY_MODELS,
-    footprint_area,
-    gap_cv2,
-    model_variance,
-)
-from lidarinv.inference.stand_mapping import TOP_SDS, StandMapping, default_template
-from lidarinv.inference.synthetic import (
+from lidarinv.examples import (
     SYNTHETIC_SHOTS,
     synthetic_shot,
     tallest_within,
     true_values,
 )
+from lidarinv.inference import InversionSettings, build_problem
+from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS, model_variance
+from lidarinv.inference.model.stand import TOP_SDS, StandMapping, default_template
 
 STAND = SYNTHETIC_SHOTS["gedi-mixed"].params
 
@@ -67,7 +62,7 @@ def test_crown_count_model_follows_the_spread_of_explicit_realisations(rng):
         canopy.append(w.canopy)
         ground_energy.append(np.sum(w.samples - w.canopy))
     canopy = np.array(canopy)
-    area = footprint_area(instrument.footprint_sigma_m)
+    area = instrument.footprint_effective_area_m2
     crowns = (
         area
         * StandMapping(default_template()).crowns_spanning(_parameters(STAND), heights[None, :])[0]
@@ -80,8 +75,8 @@ def test_crown_count_model_follows_the_spread_of_explicit_realisations(rng):
     model = ExpectedWaveformModel(instrument, heights, STAND)
     understory_gap = np.exp(-instrument.extinction_per_favd * STAND.understory_lai)
     gap = model.evaluate(model.vector(STAND)).gap_ground / understory_gap
-    crown_area = -np.log1p(-derived.canopy_cover(STAND)) / (STAND.density * 1e-4)
-    modelled = np.sqrt(gap_cv2(gap, crown_area, area))[0]
+    crown_area = poisson_stand.crown_count(derived.canopy_cover(STAND)) / (STAND.density * 1e-4)
+    modelled = np.sqrt(poisson_stand.footprint_gap_cv2(gap, crown_area, area))[0]
     measured = np.std(ground_energy) / np.mean(ground_energy)
     assert measured == pytest.approx(modelled, rel=0.35)
 
@@ -101,7 +96,7 @@ def test_observed_discrepancy_follows_the_shot_and_not_the_parameters(rng):
     # in the posterior: the same per-bin variance for every row, whatever its parameters
     shot = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng, shot_id=1)
     post = build_problem(shot, InversionSettings(discrepancy_model="observed")).log_posterior
-    assert post.fixed_discrepancy.shape == post.data.axis.shape
+    assert post.likelihood.fixed_discrepancy.shape == post.data.axis.shape
     with pytest.raises(ValueError, match="unknown discrepancy model"):
         build_problem(shot, InversionSettings(discrepancy_model="kriging"))
 

@@ -7,16 +7,16 @@ import pytest
 from scipy import stats
 
 from forward.pulse import MeasuredPulse
-from lidarinv.inference import InversionSettings, build_problem
-from lidarinv.inference.compiled import relative_heights
-from lidarinv.inference.likelihood import (
-    WindowData,
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
+from lidarinv.inference import InversionSettings, WindowData, build_problem
+from lidarinv.inference.likelihood.gaussian import model_moments, row_log_likelihood
+from lidarinv.inference.model.waveform import relative_heights
+from tests.testing import (
+    assert_fast_path,
     log_likelihood,
-    model_moments,
-    row_log_likelihood,
+    relative_heights_reference,
+    row_log_likelihood_reference,
 )
-from lidarinv.inference.posterior import rh_from_waveform
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
 
 
 def test_gaussian_censored_and_saturated_terms_match_scipy():
@@ -99,20 +99,27 @@ def test_fast_likelihood_matches_the_numpy_reference_with_either_discrepancy():
     for scale, extra_fixed in ((0.0, fixed), (0.25, None)):
         extra = fixed if extra_fixed is not None else (scale * gain[:, None] * signal) ** 2
         mean, variance = model_moments(signal, gain, baseline, sigma, 0.4, extra)
-        fast = row_log_likelihood(data, signal, gain, baseline, sigma, 0.4, scale, extra_fixed)
-        np.testing.assert_allclose(fast, log_likelihood(data, mean, variance), rtol=1e-12)
+        args = (data, signal, gain, baseline, sigma, 0.4, scale, extra_fixed)
+        reference = assert_fast_path(row_log_likelihood, row_log_likelihood_reference, *args)
+        np.testing.assert_allclose(reference, log_likelihood(data, mean, variance), rtol=1e-12)
 
 
-def test_fast_relative_heights_match_the_numpy_reference():
+def test_fast_relative_heights_match_the_rh_of_record():
+    """The compiled RH of model waveforms against lidarinv.observe.metrics.rh_metrics, row
+    by row (NaN where a row has no energy)."""
     rng = np.random.default_rng(8)
     axis = 100.0 + 0.15 * np.arange(60)
     signal = rng.gamma(1.5, 1.0, (12, axis.size)) * (rng.random((12, axis.size)) > 0.5)
+    # empty end bins, as every inversion window has (its margins): there rh_metrics' RH
+    # runs from the lowest bin's centre to the highest's, a clip that never binds
+    signal[:, :2] = signal[:, -2:] = 0.0
     signal[0] = 0.0  # no energy: NaN
     signal[1, :] = -1.0  # only negative samples count as none
     signal[2, :] = 0.0
     signal[2, 30] = 4.0  # one bin holds it all
     ground = rng.uniform(100.0, 102.0, 12)
-    fast = relative_heights(signal, axis, ground, (0.25, 0.5, 0.98))
-    reference = rh_from_waveform(signal, axis, ground, (0.25, 0.5, 0.98))
-    np.testing.assert_allclose(fast, reference, atol=1e-10)
-    assert np.all(np.isnan(fast[:2]))
+    levels = (0.25, 0.5, 0.98)
+    reference = assert_fast_path(
+        relative_heights, relative_heights_reference, signal, axis, ground, levels, atol=1e-10
+    )
+    assert np.all(np.isnan(reference[:2]))

@@ -8,12 +8,12 @@ import pytest
 from scipy import stats
 from scipy.integrate import quad
 
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, SamplerSettings, build_problem, invert_shot
-from lidarinv.inference.likelihood import WindowData
-from lidarinv.inference.marginal import GainMarginal, gain_marginal_obstacle
-from lidarinv.inference.posterior import LogPosterior
-from lidarinv.inference.priors import LogUniform, TruncatedLogNormal, TruncatedNormal, Uniform
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
+from lidarinv.inference.likelihood.gaussian import ShotLikelihood
+from lidarinv.inference.likelihood.marginal import GainMarginal, gain_marginal_obstacle
+from lidarinv.inference.model.priors import LogUniform, TruncatedLogNormal, TruncatedNormal, Uniform
+from lidarinv.inference.shot import WindowData
 
 PRIORS = [
     LogUniform(100.0, 40000.0),
@@ -177,10 +177,11 @@ def test_a_posterior_asked_to_marginalise_where_it_cannot_says_why(problems):
         np.zeros(post.data.axis.size, bool),
         floor=50.0,
     )
+    gain = post.space.by_name["gain"].prior
     with pytest.raises(ValueError, match="censored"):
-        LogPosterior(post.space, post.mapping, post.model, floored, 0.0, 0.0)
+        ShotLikelihood(floored, 0.0, 0.0, gain_prior=gain)
     with pytest.raises(ValueError, match="shot noise"):
-        LogPosterior(post.space, post.mapping, post.model, post.data, 0.3, 0.0)
+        ShotLikelihood(post.data, 0.3, 0.0, gain_prior=gain)
 
 
 def test_marginalised_and_sampled_chains_are_labelled_apart(problems):

@@ -5,8 +5,8 @@ import emcee
 import numpy as np
 import pytest
 
-from lidarinv.inference import moves
-from lidarinv.inference.moves import ChainStudentMove, EnsembleStudentMove
+from lidarinv.inference.sampling import moves
+from lidarinv.inference.sampling.moves import ChainStudentMove, EnsembleStudentMove
 
 
 def _gamma_target(x):

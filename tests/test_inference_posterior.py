@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from lidarinv.cli import main
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import (
     InversionResult,
     InversionSettings,
@@ -13,7 +14,6 @@ from lidarinv.inference import (
     build_problem,
     invert_shot,
 )
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
 
 # ρv/ρg and the understory known: the canopy structure is then well identified
 KNOWN = {"rho_ratio": 1.5, "understory_lai": 0.3, "understory_height": 1.0}

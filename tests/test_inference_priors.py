@@ -6,17 +6,18 @@ import numpy as np
 import pytest
 from scipy import integrate, stats
 
-from lidarinv.inference import InversionSettings, coordinates
-from lidarinv.inference.parameters import default_space, read_priors_file
-from lidarinv.inference.priors import (
-    UNBOUNDED_MAPS,
+from lidarinv.inference import InversionSettings
+from lidarinv.inference.model import coordinates
+from lidarinv.inference.model.parameters import default_space
+from lidarinv.inference.model.prior_table import UNBOUNDED_MAPS, PriorTable
+from lidarinv.inference.model.priors import (
     LogUniform,
-    PriorTable,
     TruncatedLogNormal,
     TruncatedNormal,
     Uniform,
     make_prior,
 )
+from lidarinv.io.priors_file import read_priors_file
 
 PRIORS = [
     Uniform(-2.0, 3.0),
@@ -172,7 +173,7 @@ def test_priors_file_errors_name_the_problem(tmp_path, text, message):
     path = tmp_path / "bad.toml"
     path.write_text(text)
     with pytest.raises(ValueError, match=message):
-        read_priors_file(path)
+        InversionSettings.from_priors_file(path)
 
 
 def test_joint_cover_pai_coordinates_round_trip_with_exact_jacobian():

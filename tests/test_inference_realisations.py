@@ -10,17 +10,14 @@ from scipy import stats
 from scipy.integrate import quad
 
 from forward.expected import ExpectedWaveformModel
-from forward.expected_vectors import VECTOR_FIELDS, params_from_vector
+from forward.expected.vectors import VECTOR_FIELDS, params_from_vector
 from forward.instrument import instrument_preset
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, SamplerSettings, build_problem, invert_shot
-from lidarinv.inference.correlated import Rotation
-from lidarinv.inference.posterior import LogPosterior
-from lidarinv.inference.realisations import (
-    RealisationSettings,
-    discrepancy_covariance,
-    realisation_residuals,
-)
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
+from lidarinv.inference.likelihood.covariance import Rotation
+from lidarinv.inference.likelihood.gaussian import ShotLikelihood
+from lidarinv.inference.realisations import discrepancy_covariance, realisation_residuals
+from lidarinv.inference.settings import RealisationSettings
 
 STAND = SYNTHETIC_SHOTS["gedi-mixed"].params
 
@@ -67,7 +64,7 @@ def test_rotated_likelihood_is_the_dense_multivariate_normal(problems, shot, rng
     terms = post.evaluate(x, keep_signal=True)
     values = problem.space.values(x)
     if support == "canopy bins":
-        assert post.rotation.rotated.size == np.sum(inside)
+        assert post.likelihood.rotation.rotated.size == np.sum(inside)
     for r in range(x.shape[0]):
         mean = values["baseline"][r] + values["gain"][r] * terms.signal[r]
         dense = covariance + values["noise_sigma"][r] ** 2 * np.eye(covariance.shape[0])
@@ -130,11 +127,10 @@ def test_a_covariance_needs_exact_bins_and_no_shot_noise(problems, rng):
     post = problem.log_posterior
     covariance = _random_covariance(problem.window.axis.size, rng)
     with pytest.raises(ValueError, match="shot noise"):
-        LogPosterior(post.space, post.mapping, post.model, post.data, 1.0, 0.0, (0, np.inf),
-                     covariance)  # fmt: skip
+        ShotLikelihood(post.data, 1.0, 0.0, covariance)
     censored = replace(post.data, censored=post.data.samples < np.median(post.data.samples))
     with pytest.raises(ValueError, match="censored"):
-        LogPosterior(post.space, post.mapping, post.model, censored, fixed_discrepancy=covariance)
+        ShotLikelihood(censored, fixed_discrepancy=covariance)
     with pytest.raises(ValueError, match="censored"):
         Rotation.of(covariance, censored)
 

@@ -7,20 +7,15 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from forward.stand_params import StandParams
+from lidarinv.examples import ShotRecipe, synthetic_shot
 from lidarinv.inference import InversionSettings, build_problem
-from lidarinv.inference.chains import BatchedSampler, sample_in_chunks
-from lidarinv.inference.moves import MOVES
-from lidarinv.inference.parameters import Parameter, ParameterSpace
-from lidarinv.inference.priors import Uniform
-from lidarinv.inference.sampling import (
-    SamplerSettings,
-    _may_converge,
-    burn_in,
-    find_map,
-    run_sampler,
-)
-from lidarinv.inference.stand_mapping import TOP_SDS
-from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot
+from lidarinv.inference.model.priors import Uniform
+from lidarinv.inference.model.space import Parameter, ParameterSpace
+from lidarinv.inference.model.stand import TOP_SDS
+from lidarinv.inference.sampling import SamplerSettings, burn_in, find_map, run_sampler
+from lidarinv.inference.sampling.ensemble import BatchedSampler, sample_in_chunks
+from lidarinv.inference.sampling.moves import MOVES
+from lidarinv.inference.sampling.sampler import _may_converge
 
 
 class LinearGaussianToy:

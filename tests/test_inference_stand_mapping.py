@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from lidarinv.inference.parameters import DEFAULT_STRUCTURE_PRIORS
-from lidarinv.inference.stand_mapping import StandMapping, default_template
+from lidarinv.inference.model.parameters import DEFAULT_STRUCTURE_PRIORS
+from lidarinv.inference.model.stand import StandMapping, default_template
+from tests.testing import assert_fast_path
 
 
 def _rows(rng, n):
@@ -21,21 +22,17 @@ def _rows(rng, n):
 def test_compiled_mapping_equals_the_numpy_reference(shapes):
     """Every model-vector column and derived quantity, over prior draws and edge stands
     (sparse and dense, thin and wide height distributions, cut at the ground)."""
-    mapping = StandMapping(default_template(shapes), shapes)
-    assert mapping.compiled
+    mapping = StandMapping(default_template(shapes), shapes, backend="numba")
+    assert mapping.backend == "numba"
+    reference = StandMapping(default_template(shapes), shapes, backend="numpy")
     v = _rows(np.random.default_rng(6), 400)
     ok = mapping.valid(v)
     v = {name: values[ok] for name, values in v.items()}
     assert ok.sum() > 300 and ok[:3].all()
-    vectors, derived = mapping.model_vectors(v)
-    mapping.compiled = False
-    ref_vectors, ref_derived = mapping.model_vectors(v)
-    np.testing.assert_allclose(vectors, ref_vectors, rtol=1e-11, atol=0)
-    assert derived.keys() == ref_derived.keys()
-    for name in derived:
-        np.testing.assert_allclose(derived[name], ref_derived[name], rtol=1e-10, err_msg=name)
+    ref_vectors, _ = assert_fast_path(mapping.model_vectors, reference.model_vectors, v, rtol=1e-10)
+    np.testing.assert_allclose(mapping.model_vectors(v)[0], ref_vectors, rtol=1e-11, atol=0)
 
 
 def test_only_truncated_normal_heights_take_the_compiled_path():
     template = default_template().with_values(height_family="weibull")
-    assert not StandMapping(template).compiled
+    assert StandMapping(template, backend="numba").backend == "numpy"

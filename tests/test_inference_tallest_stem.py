@@ -7,17 +7,17 @@ from scipy import stats
 
 from forward.realise import realise
 from forward.stand import Stand
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, build_problem
 from lidarinv.inference import realisations as realisations_module
-from lidarinv.inference.posterior import LogPosterior
-from lidarinv.inference.realisations import realisation_residuals
-from lidarinv.inference.stand_mapping import (
+from lidarinv.inference.model.stand import StandMapping, default_template
+from lidarinv.inference.model.tallest_stem import (
     TALLEST_STEM,
     TALLEST_STEM_POSITION,
-    StandMapping,
-    default_template,
+    tallest_stem_within,
 )
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot, tallest_stem_within
+from lidarinv.inference.posterior import LogPosterior
+from lidarinv.inference.realisations import realisation_residuals
 
 SIGMA_F = 5.5  # m, GEDI-like footprint σ
 VALUES = {
@@ -164,12 +164,8 @@ def test_the_posterior_carries_the_law_of_the_latent(problem, shot):
     np.testing.assert_allclose(terms.log_prior[:2], plain.log_prior(rest) + law, rtol=1e-12)
     unconditioned = build_problem(shot, InversionSettings())
     with pytest.raises(ValueError, match=TALLEST_STEM):
-        LogPosterior(space, unconditioned.log_posterior.mapping, *_rest(unconditioned))
-
-
-def _rest(problem):
-    post = problem.log_posterior
-    return post.model, post.data, post.shot_factor, post.discrepancy
+        post = unconditioned.log_posterior
+        LogPosterior(space, post.model, post.likelihood)
 
 
 def test_residuals_are_taken_against_each_stands_own_tallest_stem(problem, shot, monkeypatch):

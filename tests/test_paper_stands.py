@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from forward import derived
+from forward.examples import EXAMPLES
 from forward.expected import ExpectedWaveformModel
 from forward.paper_stands import (
     SUCCESSIONAL,
-    SUCCESSIONAL_EXAMPLES,
     jack_pine_instrument,
     jack_pine_params,
     successional_instrument,
@@ -94,7 +94,8 @@ def test_upper_tier_of_the_old_stand_occults_the_lower():
 
 
 def test_successional_examples_are_explicit_scenes():
-    assert sorted(SUCCESSIONAL_EXAMPLES) == [f"successional-{a}" for a in (20, 200, 5, 60)]
+    successional = sorted(name for name in EXAMPLES if name.startswith("successional"))
+    assert successional == [f"successional-{a}" for a in (20, 200, 5, 60)]
     scene = successional_scene(20)
     assert scene.stand.n_trees > 0
     assert set(np.unique(scene.stand.shape_names)) <= {"cone", "ellipsoid"}

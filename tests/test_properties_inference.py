@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, build_problem
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
 
 
 @pytest.fixture(scope="module", params=[True, False], ids=["gain-marginalised", "gain-sampled"])

@@ -15,8 +15,8 @@ and read what the posterior says.
 # engine, plus GEDI-like noise. The observation keeps the truth.
 import numpy as np
 
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionResult, InversionSettings, SamplerSettings, invert_shot
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
 
 rng = np.random.default_rng(0)
 shot = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng, shot_id="demo")

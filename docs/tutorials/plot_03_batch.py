@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from lidarinv.batch import invert_many, read_result
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionResult, InversionSettings, SamplerSettings
-from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.io import iter_observations, write_observations
 
 folder = Path(tempfile.mkdtemp())

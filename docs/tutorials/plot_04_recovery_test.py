@@ -18,8 +18,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from forward import StandParams
+from lidarinv.examples import ShotRecipe, synthetic_shot
 from lidarinv.inference import InversionSettings, SamplerSettings, invert_shot
-from lidarinv.inference.synthetic import ShotRecipe, synthetic_shot
 
 
 def stand(density, mean_height, height_sd, shapes):

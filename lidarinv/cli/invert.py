@@ -52,7 +52,7 @@ def group_of(shot_id) -> str:
 
 def _selected(args, rng):
     if args.example is not None:
-        from lidarinv.inference.synthetic import SYNTHETIC_SHOTS, synthetic_shot
+        from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 
         yield synthetic_shot(SYNTHETIC_SHOTS[args.example], rng, shot_id=args.example)
         return
@@ -114,7 +114,7 @@ def run(args) -> int:
     if args.file is not None and not args.file.exists():
         raise ValueError(f"no such file: {args.file}")
     if args.example is not None:
-        from lidarinv.inference.synthetic import SYNTHETIC_SHOTS
+        from lidarinv.examples import SYNTHETIC_SHOTS
 
         if args.example not in SYNTHETIC_SHOTS:
             raise ValueError(f"unknown example {args.example!r}; known: {list(SYNTHETIC_SHOTS)}")

@@ -79,7 +79,7 @@ def sampled_dimensions(settings) -> int:
     be integrated out (every bin exactly recorded): the parameter space of
     :func:`lidarinv.inference.default_space` with the settings' priors."""
     from lidarinv.inference import default_space
-    from lidarinv.inference.priors import Uniform
+    from lidarinv.inference.model.priors import Uniform
 
     overrides = dict(settings.priors)
     if not settings.sample_noise:

@@ -1,11 +1,11 @@
 """Model discrepancy from explicit realisations: a covariance between bins for the shot.
 
 One footprint holds one random arrangement of trees; the expected-waveform model predicts
-the mean over arrangements. A per-bin variance (:mod:`.discrepancy`) fixed by the
+the mean over arrangements. A per-bin variance (:mod:`.likelihood.discrepancy`) fixed by the
 observed signal is zero where the shot shows no signal, so a row whose expected stand
 puts a faint tail of crowns above the shot's tallest tree is penalised as if that were
 noise, and the top height is pulled down to the tallest tree present. Here the
-discrepancy is simulated instead, as the issue suggests:
+discrepancy is simulated instead (:func:`realisation_covariance`):
 
 1. a pilot MAP search under the per-bin discrepancy;
 2. K parameter draws from the Laplace ball around it (where the sampler starts);
@@ -17,7 +17,7 @@ discrepancy is simulated instead, as the issue suggests:
    C = (1 − γ)·S + γ·diag(S), which is positive definite where S has variance although
    S has rank ≤ K.
 
-C enters the likelihood as a covariance, σn² I + C (:mod:`.correlated`). A shot whose
+C enters the likelihood as a covariance, σn² I + C (:mod:`.likelihood.covariance`). A shot whose
 expected stand has a tail of rare tall crowns then finds "no crown there" a likely
 departure, and one with crowns above the expected stand a likely one too. With the
 latent tallest stem (``InversionSettings.tallest_stem``) each residual is taken against
@@ -26,77 +26,56 @@ explains: C keeps the spread that remains, a Gaussian one, without the skew.
 """
 
 import time
-from dataclasses import dataclass, replace
 
 import numpy as np
 
-from forward.engine import AccuracySettings, WaveformSimulator
-from forward.expected_vectors import CONDITIONING_FIELDS, FIELD_INDEX, params_from_vector
+from forward.engine import WaveformSimulator
+from forward.expected.vectors import CONDITIONING_FIELDS, FIELD_INDEX, params_from_vector
 from forward.realise import realise, scene_extras
 
-from .posterior import LogPosterior
-from .sampling import Mode, find_map, initial_ball
-from .stand_mapping import (
+from .model.tallest_stem import (
     NO_STEM_DEPTH_M,
     TALLEST_STEM,
     TALLEST_STEM_LATENTS,
     TALLEST_STEM_POSITION,
+    tallest_stem_within,
 )
-from .synthetic import tallest_stem_within
-
-#: The explicit engine's quadrature for the discrepancy (see ``RealisationSettings``).
-DISCREPANCY_QUADRATURE = AccuracySettings(radial_nodes=2, angular_nodes=4)
-
-
-@dataclass(frozen=True)
-class RealisationSettings:
-    """How the discrepancy covariance is simulated.
-
-    Parameters
-    ----------
-    count : int
-        Explicit realisations K, one per parameter draw (each 15–25 ms for GEDI).
-    shrinkage : float
-        γ ∈ [0, 1], the weight of the diagonal in C = (1 − γ)·S + γ·diag(S).
-    ball : float
-        Scale of the Laplace ball the draws come from (as ``SamplerSettings.ball``).
-    plot_diameters : float
-        Side of the square plot each stand is realised on, in footprint diameters
-        (1/e² diameters, 4σf); the footprint sits at its centre.
-    accuracy : forward.engine.AccuracySettings
-        Quadrature of the explicit engine. 8 columns a crown (2 rings × 4 angles) instead
-        of the engine's 32: on three GEDI shots C moved by 3.5–10 % (Frobenius norm),
-        against 14–44 % for another set of 64 realisations, in a third of the time.
-    """
-
-    count: int = 64
-    shrinkage: float = 0.3
-    ball: float = 1.0
-    plot_diameters: float = 3.0
-    accuracy: AccuracySettings = DISCREPANCY_QUADRATURE
-
-    def __post_init__(self):
-        if self.count < 2:
-            raise ValueError(f"the discrepancy needs at least 2 realisations, got {self.count}")
-        if not 0.0 <= self.shrinkage <= 1.0:
-            raise ValueError(f"shrinkage must lie in [0, 1], got {self.shrinkage}")
-        if not (self.ball > 0 and self.plot_diameters > 0):
-            raise ValueError("ball and plot_diameters must be positive")
+from .posterior import LogPosterior
+from .sampling.sampler import SamplerSettings
+from .sampling.start import Mode, find_map, initial_ball
+from .settings import RealisationSettings
 
 
 def realisation_residuals(
     log_posterior: LogPosterior, instrument, x, rng, plot_diameters=3.0, accuracy=None
 ) -> np.ndarray:
-    """dᵢ = aᵢ·(W_explicit − W_expected) (DN), (n, bins), one explicit stand per row of
-    physical parameters ``x`` (n, ndim) with a finite log-posterior.
+    """Residuals of explicit realisations against the expected waveform.
 
-    aᵢ is the row's gain, or its least-squares fit where the gain is integrated out.
+    Parameters
+    ----------
+    log_posterior : LogPosterior
+        The shot's (pilot) posterior.
+    instrument : forward.instrument.Instrument
+    x : array (n, ndim)
+        Physical parameters with a finite log-posterior, one explicit stand each.
+    rng : numpy.random.Generator
+    plot_diameters : float
+        Side of each stand's square plot, in footprint diameters (4σf).
+    accuracy : forward.engine.AccuracySettings, optional
+        The explicit engine's quadrature; its own default if None.
+
+    Returns
+    -------
+    array (n, bins) (DN)
+        dᵢ = aᵢ·(W_explicit − W_expected), aᵢ the row's gain or its least-squares fit where
+        the gain is integrated out.
+
+    Notes
+    -----
     Where the latent tallest stem is sampled, each row's latents are set to those of its
     own stand's tallest stem within the disc (its height, or a height in the no-stem range
-    below the stand's lowest tree, and its position), so the residuals hold what that
-    stem does not explain; a position held fixed leaves the spread of the stem's weight
-    in them. ``accuracy`` (:class:`forward.engine.AccuracySettings`) sets the explicit
-    engine's quadrature, its own default if None.
+    below the stand's lowest tree, and its position), so the residuals hold what that stem
+    does not explain; a position held fixed leaves the spread of the stem's weight in them.
     """
     post = log_posterior
     x = np.array(x, float)
@@ -105,7 +84,7 @@ def realisation_residuals(
         raise ValueError("every parameter draw of the discrepancy needs a finite posterior")
     values = post.space.values(x)
     vectors, _ = post.mapping.model_vectors(values)
-    full = post.model.full_vectors(vectors)
+    full = post.model.expected.full_vectors(vectors)
     full[:, [FIELD_INDEX[name] for name in CONDITIONING_FIELDS]] = list(
         CONDITIONING_FIELDS.values()
     )  # the whole stand, whatever stem a row's footprint is conditioned on
@@ -113,7 +92,7 @@ def realisation_residuals(
     centre = (side / 2, side / 2)
     stands = []
     for row in full:
-        params, _ = params_from_vector(row, post.model.template)
+        params, _ = params_from_vector(row, post.model.expected.template)
         stands.append((params, realise(params, side, rng)))
     names = post.space.names
     if set(TALLEST_STEM_LATENTS) & set(names):  # each row on its own stand's tallest stem
@@ -139,7 +118,24 @@ def realisation_residuals(
 
 
 def discrepancy_covariance(residuals, shrinkage) -> np.ndarray:
-    """C = (1 − γ)·S + γ·diag(S) (DN²) from residuals (K, bins), S = Σ dᵢdᵢᵀ / K."""
+    """The shrunk second moment of the realisation residuals.
+
+    Parameters
+    ----------
+    residuals : array (K ≥ 2, bins) (DN)
+    shrinkage : float
+        γ ∈ [0, 1].
+
+    Returns
+    -------
+    array (bins, bins) (DN²)
+        C = (1 − γ)·S + γ·diag(S), S = Σ dᵢdᵢᵀ / K.
+
+    Raises
+    ------
+    ValueError
+        For fewer than two residuals or non-finite ones.
+    """
     residuals = np.asarray(residuals, float)
     if residuals.ndim != 2 or residuals.shape[0] < 2:
         raise ValueError(f"residuals must have shape (K ≥ 2, bins), got {residuals.shape}")
@@ -149,22 +145,45 @@ def discrepancy_covariance(residuals, shrinkage) -> np.ndarray:
     return (1.0 - shrinkage) * second + shrinkage * np.diag(np.diag(second))
 
 
-def with_realisation_covariance(problem, rng, settings: RealisationSettings | None = None):
-    """The problem with its discrepancy replaced by the simulated covariance, the pilot
-    MAP (unbounded coordinates, where the sampler may start) and a dict of what it took
-    (``seconds``, ``map_converged``)."""
+def realisation_covariance(
+    pilot: LogPosterior, instrument, rng, settings: RealisationSettings | None = None,
+    sampler=None,
+):  # fmt: skip
+    """The discrepancy covariance of a shot, simulated around its pilot MAP.
+
+    Parameters
+    ----------
+    pilot : LogPosterior
+        The shot's posterior under the per-bin ``observed`` discrepancy.
+    instrument : forward.instrument.Instrument
+        The shot's instrument (for the explicit engine).
+    rng : numpy.random.Generator
+    settings : RealisationSettings, optional
+    sampler : SamplerSettings, optional
+        The MAP search's settings (:func:`.sampling.start.find_map`).
+
+    Returns
+    -------
+    covariance : array (bins, bins) (DN²)
+        C of :func:`discrepancy_covariance`, for :meth:`.posterior.LogPosterior.
+        with_fixed_discrepancy`.
+    start : array (ndim,)
+        The pilot MAP (unbounded coordinates), where the sampler may start.
+    report : dict
+        ``seconds`` (the simulation's wall time) and ``map_converged``.
+    """
     settings = RealisationSettings() if settings is None else settings
+    sampler = SamplerSettings() if sampler is None else sampler
     clock = time.perf_counter()
-    pilot = problem.log_posterior
-    space = problem.space
+    space = pilot.space
     log_prob = lambda u: pilot(u)[:, 0]  # noqa: E731
-    estimate = find_map(log_prob, space, rng, problem.settings.sampler)
+    estimate = find_map(log_prob, space, rng, sampler)
     mode = Mode(estimate.u, estimate.log_prob, estimate.covariance)
     draws = initial_ball(log_prob, [mode], settings.ball, settings.count, rng)
     x, _ = space.from_unbounded(draws)
     residuals = realisation_residuals(
-        pilot, problem.instrument, x, rng, settings.plot_diameters, settings.accuracy
+        pilot, instrument, x, rng, settings.plot_diameters, settings.accuracy
     )
-    post = pilot.with_fixed_discrepancy(discrepancy_covariance(residuals, settings.shrinkage))
+    covariance = discrepancy_covariance(residuals, settings.shrinkage)
     report = {"seconds": time.perf_counter() - clock, "map_converged": estimate.converged}
-    return replace(problem, log_posterior=post), estimate.u, report
+    return covariance, estimate.u, report

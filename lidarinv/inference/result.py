@@ -95,7 +95,21 @@ class InversionResult:
         return bool(self.diagnostics.get("converged", False))
 
     def column(self, name) -> np.ndarray:
-        """Samples of a free parameter or a derived quantity."""
+        """Samples of a free parameter or a derived quantity.
+
+        Parameters
+        ----------
+        name : str
+
+        Returns
+        -------
+        array (m,)
+
+        Raises
+        ------
+        KeyError
+            Naming the quantities there are.
+        """
         if name in self.parameter_names:
             return self.samples[:, self.parameter_names.index(name)]
         if name in self.derived:
@@ -107,7 +121,13 @@ class InversionResult:
         return tuple(self.parameter_names) + tuple(self.derived)
 
     def summary(self) -> dict:
-        """``{name: {"median", "p05", "p16", "p84", "p95", "units"}}`` of every quantity."""
+        """Quantiles of every quantity.
+
+        Returns
+        -------
+        dict
+            ``{name: {"median", "p05", "p16", "p84", "p95", "units"}}``.
+        """
         out = {}
         for name in self.quantity_names:
             values = self.column(name)
@@ -118,7 +138,12 @@ class InversionResult:
         return out
 
     def summary_table(self) -> str:
-        """A printable table: median and the 5/16/84/95 % quantiles."""
+        """A printable table: median and the 5/16/84/95 % quantiles, then the diagnostics.
+
+        Returns
+        -------
+        str
+        """
         header = (
             f"{'quantity':<20}{'units':>9}{'median':>11}{'5%':>11}{'16%':>11}{'84%':>11}{'95%':>11}"
         )
@@ -145,7 +170,14 @@ class InversionResult:
         return "\n".join(lines)
 
     def summary_row(self) -> dict:
-        """One flat row (str/float/int/bool) for batch tables."""
+        """One flat row for batch tables.
+
+        Returns
+        -------
+        dict
+            Shot id, convergence, steps, largest τ, flags and every quantity's quantiles
+            (str, float, int, bool values).
+        """
         row = {
             "shot_id": str(self.shot_id),
             "converged": self.converged,
@@ -159,7 +191,12 @@ class InversionResult:
 
     # --- HDF5 -------------------------------------------------------------------------
     def write(self, group: h5py.Group):
-        """Write into an open HDF5 group."""
+        """Write into an open HDF5 group.
+
+        Parameters
+        ----------
+        group : h5py.Group
+        """
         group.attrs["shot_id"] = str(self.shot_id)
         group.attrs["shot_id_type"] = type(self.shot_id).__name__
         group.attrs["lidarinv_version"] = self.version
@@ -188,6 +225,16 @@ class InversionResult:
 
     @classmethod
     def read(cls, group: h5py.Group) -> "InversionResult":
+        """Read a result written by :meth:`write`.
+
+        Parameters
+        ----------
+        group : h5py.Group
+
+        Returns
+        -------
+        InversionResult
+        """
         attrs = group.attrs
         shot_id = attrs["shot_id"]
         if attrs.get("shot_id_type") == "int":
@@ -223,7 +270,15 @@ class InversionResult:
         )
 
     def save(self, path, name="posterior", mode="a"):
-        """Save to an HDF5 file under group ``name`` (replaced if present)."""
+        """Save to an HDF5 file under a group (replaced if present).
+
+        Parameters
+        ----------
+        path : path
+        name : str
+        mode : str
+            h5py file mode.
+        """
         with h5py.File(path, mode) as handle:
             if name in handle:
                 del handle[name]
@@ -231,6 +286,22 @@ class InversionResult:
 
     @classmethod
     def load(cls, path, name="posterior") -> "InversionResult":
+        """Read a result from an HDF5 file.
+
+        Parameters
+        ----------
+        path : path
+        name : str
+
+        Returns
+        -------
+        InversionResult
+
+        Raises
+        ------
+        ValueError
+            Where the file has no such group.
+        """
         with h5py.File(path, "r") as handle:
             if name not in handle:
                 raise ValueError(f"{path}: no posterior group {name!r} (have {list(handle)})")

@@ -1,0 +1,180 @@
+"""The results stage: a finished run's samples, derived quantities, bands and diagnostics
+collected into an :class:`.result.InversionResult`."""
+
+import numpy as np
+
+from .likelihood.gaussian import model_moments
+from .model.tallest_stem import disc_area
+from .posterior import BLOB_NAMES, BLOB_UNITS
+from .problem import InversionProblem
+from .result import QUANTILES, InversionResult
+from .sampling.sampler import SamplerRun
+
+#: Posterior samples used for the predictive band and the crown-volume profile.
+_BAND_SAMPLES = 400
+
+
+#: Derived quantity: the tallest stem within the footprint, a posterior-predictive draw.
+FOOTPRINT_TOP = "footprint_top_height"
+
+
+def footprint_top_height(problem: InversionProblem, x, density_per_ha, rng) -> np.ndarray:
+    """The tallest stem within the footprint per posterior sample.
+
+    Parameters
+    ----------
+    problem : InversionProblem
+    x : array (n, ndim)
+        Posterior samples (physical units).
+    density_per_ha : array (n,) (stems/ha)
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    array (n,) (m)
+        Height of the tallest stem within the footprint's 1/e² radius (2σf): one Poisson
+        draw of stems from each sample's stand (:meth:`.model.stand.StandMapping.
+        tallest_in_area`). This, not ``top_height`` (the distribution's upper end), is
+        what the waveform's canopy top and RH98-style metrics measure. Where the
+        posterior conditions on the tallest stem, it is that latent stem's height.
+    """
+    values = problem.space.values(x)
+    mapping = problem.log_posterior.mapping
+    if mapping.conditioned:  # the latent stem itself, within the same disc
+        return mapping.model_vectors(values)[1]["tallest_stem"]
+    values["density_m2"] = np.asarray(density_per_ha) * 1e-4
+    area = disc_area(problem.instrument.footprint_sigma_m)
+    uniform = rng.uniform(size=x.shape[0])
+    return mapping.tallest_in_area(values, area, uniform)
+
+
+def replicate_observation(like, signal, values, rng) -> np.ndarray:
+    """One replicated observation per posterior sample.
+
+    Parameters
+    ----------
+    like : ShotLikelihood
+        The likelihood stage (its window, noise and discrepancy).
+    signal : array (n, bins)
+        Model waveforms W of the samples.
+    values : dict of arrays (n,)
+        The samples' parameters (gain, baseline and noise σ in DN).
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    array (n, bins) (DN)
+        The model mean b + a·W plus noise of the likelihood's per-bin variance (noise,
+        shot noise and the model discrepancy), set to the floor or the digitiser maximum
+        where the product would have set it. Quantiles over the rows are the posterior
+        predictive bands.
+    """
+    if like.fixed_discrepancy is None:
+        extra = (like.discrepancy * np.asarray(values["gain"])[:, None] * signal) ** 2
+    elif like.fixed_discrepancy.ndim == 2:  # a covariance: its diagonal, per bin
+        extra = np.diag(like.fixed_discrepancy)
+    else:
+        extra = like.fixed_discrepancy
+    mean, variance = model_moments(
+        signal, values["gain"], values["baseline"], values["noise_sigma"], like.shot_factor, extra
+    )
+    draws = mean + np.sqrt(variance) * rng.standard_normal(mean.shape)
+    data = like.data
+    if data.censored.any() and np.isfinite(data.floor):
+        draws = np.maximum(draws, data.floor)
+    if np.isfinite(data.saturation):
+        draws = np.minimum(draws, data.saturation)
+    return draws
+
+
+def _flat(array, run: SamplerRun):
+    return array[run.burn :: run.thin].reshape(-1, *array.shape[2:])
+
+
+def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> InversionResult:
+    """Posterior samples, derived quantities, bands and diagnostics of a finished run.
+
+    Parameters
+    ----------
+    problem : InversionProblem
+    run : SamplerRun
+    rng : numpy.random.Generator
+        For the marginalised gain's draws, the band's samples and the footprint's
+        tallest stem.
+
+    Returns
+    -------
+    InversionResult
+        The samples after burn-in and thinning in physical units (with the marginalised
+        gain drawn from p(a | θ, y)), the blobs, the footprint's tallest stem, the
+        quantiles of the model mean b + a·W over :data:`_BAND_SAMPLES` samples, the
+        crown-volume profile and the run's diagnostics.
+    """
+    space, post = problem.space, problem.log_posterior
+    u = _flat(run.chain, run)
+    x, _ = space.from_unbounded(u)
+    log_prob = _flat(run.log_prob, run)
+    blobs = _flat(run.blobs, run)
+    derived = {name: blobs[:, i] for i, name in enumerate(BLOB_NAMES)}
+    derived[FOOTPRINT_TOP] = footprint_top_height(problem, x, derived["density"], rng)
+    drawn = post.draw_marginalised(x, rng)  # e.g. the gain, from p(gain | θ, y)
+    pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
+    terms = post.evaluate(x[pick], keep_signal=True)
+    good = np.isfinite(terms.log_posterior)
+    values = space.values(x[pick][good])
+    values.update({name: draws[pick][good] for name, draws in drawn.items()})
+    mean = model_moments(
+        terms.signal[good], values["gain"], values["baseline"], values["noise_sigma"]
+    )[0]
+    predictive = np.percentile(mean, QUANTILES, axis=0)
+    replicated = replicate_observation(post.likelihood, terms.signal[good], values, rng)
+    top = float(np.max(values["top_height"]))
+    profile_heights = np.linspace(0.0, top, 60)
+    profile = post.mapping.crown_volume_profile(values, profile_heights)
+    n_kept = run.chain.shape[0] - run.burn
+    ess = n_kept * run.chain.shape[1] / np.where(np.isfinite(run.tau), run.tau, np.inf)
+    a = problem.analysis
+    truth = {
+        k: float(v)
+        for k, v in problem.observation.truth.items()
+        if np.ndim(v) == 0 and isinstance(v, (int, float, np.floating))
+    }
+    return InversionResult(
+        shot_id=problem.observation.shot_id,
+        parameter_names=(*space.names, *drawn),
+        units={**{p.name: p.units for p in space.parameters}, **BLOB_UNITS, FOOTPRINT_TOP: "m"},
+        samples=np.column_stack([x, *drawn.values()]),
+        log_prob=log_prob,
+        derived=derived,
+        fixed={p.name: p.fixed for p in space.parameters if not p.free},
+        diagnostics={
+            "sampled": list(space.names),  # the coordinates of tau and ess
+            "tau": run.tau,
+            "acceptance": run.acceptance,
+            "ess": ess,
+            "n_steps": int(run.chain.shape[0]),
+            "n_walkers": int(run.chain.shape[1]),
+            "burn": run.burn,
+            "thin": run.thin,
+            "converged": run.converged,
+            "map_log_prob": float(np.max(run.log_prob)),
+            "start_modes": int(run.start_modes),
+            "seconds": dict(run.seconds),
+            "tau_history": [[int(i), t] for i, t in run.tau_history],
+        },
+        flags=list(run.flags),
+        profile_heights=profile_heights,
+        profile=np.percentile(profile, QUANTILES, axis=0),
+        axis=problem.window.axis,
+        observed=problem.window.samples,
+        censored=problem.window.censored,
+        predictive=predictive,
+        replicated=np.percentile(replicated, QUANTILES, axis=0),
+        saturated=problem.window.saturated,
+        floor=problem.window.floor,
+        saturation=problem.window.saturation,
+        noise_floor=float(a.start_floor),
+        priors=space.describe(),
+        settings=problem.settings.describe(),
+        truth=truth,
+    )

@@ -1,0 +1,278 @@
+"""Sampling coordinates that straighten the posterior's ridges.
+
+Only the coordinates the sampler moves in change; the prior stays the one set on the
+parameters, through the Jacobian of each map.
+
+**Crown cover and PAI**, which the waveform ties together along an L-shaped ridge: the
+joint coordinates (s, v) of :mod:`.cover_pai`.
+
+**Crown length ratio ℓ** against the mean tree height H̄ = top − TOP_SDS·sd. The waveform
+fixes the crown-base height of the mean tree, B = (1 − ℓ)·H̄, far better than either
+factor: in (top, sd, ℓ) the posterior bends along B = const (ℓ and H̄ strongly
+correlated). Sampling b = ln B instead of ℓ straightens it; |∂ℓ/∂b| = B / H̄.
+
+**Ground elevation** against the understory. The ground and a low understory (LAI Lu,
+height hu) return one blob, a pulse width wide, whose centroid the waveform fixes to about
+a centimetre while the ground elevation zg alone spreads several times wider: more or
+taller understory lifts the centroid, so zg must sink. In (zg, Lu, hu) the posterior is a
+thin curved sheet, its narrowest direction heavy-tailed.
+Sampling the centroid c = zg + f(Lu, hu, r) instead of zg flattens it, where f is the
+height of the blob's centroid above the ground (single scattering, complete hot spot,
+canopy gaps common to both parts, r = ρv/ρg, q = a·Lu):
+
+    f = hu · r · (1 − (1 − e^{−q}) / q) / (r·(1 − e^{−q}) + e^{−q}).
+
+zg = c − f at fixed (Lu, hu, r) has |∂zg/∂c| = 1. The centroid's unbounded map spans the
+ground prior's range widened upwards by the largest f (f ≤ hu), so that every ground
+elevation in the prior stays reachable.
+
+**Top height** against the footprint's tallest stem H (the latent of a footprint
+conditioned on it, :class:`.stand.StandMapping`). The waveform sees H, and the
+stand's top lies above it by a gap whose law, near the top, is close to exponential with
+its mode at zero. In (top, H) the posterior is a wedge, top ≥ H, densest along its edge.
+Sampling g = ln(top − H) instead of top opens the wedge into a smooth, one-humped density
+along g at fixed H; top = H + e^g has |∂top/∂g| = e^g.
+"""
+
+import math
+
+import numpy as np
+
+from forward.backends import jit, resolve
+
+from .cover_pai import (  # noqa: F401  (re-exported: the cover–PAI maps are coordinates too)
+    INTERCEPTION_SLOPE,
+    _cover_pai_compiled,
+    from_cover_pai,
+    from_cover_pai_bounded,
+    ridge_range,
+    to_cover_pai,
+    to_cover_pai_bounded,
+)
+
+#: Ridge-straightening coordinates by name (see :class:`.space.ParameterSpace`).
+RIDGE_COORDINATES = ("cover-pai", "crown-base", "ground-centroid", "tallest-stem")
+
+#: Those used by default: all of them (``studies/sampling_coordinates.py`` measures τ per
+#: choice). The tallest stem's gap applies only where that latent is sampled.
+DEFAULT_RIDGES = RIDGE_COORDINATES
+
+
+def crown_base_from_ratio(ratio, mean_height):
+    """The log crown-base height of the mean tree.
+
+    Parameters
+    ----------
+    ratio : array
+        Crown length ratio ℓ.
+    mean_height : array (m)
+        H̄.
+
+    Returns
+    -------
+    array
+        b = ln((1 − ℓ)·H̄); NaN where H̄ ≤ 0 or ℓ ∉ [0, 1).
+    """
+    ratio, mean_height = np.asarray(ratio, float), np.asarray(mean_height, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        base = np.log((1.0 - ratio) * mean_height)
+    bad = ~((ratio >= 0) & (ratio < 1) & (mean_height > 0))
+    return np.where(bad, np.nan, base)
+
+
+def ratio_from_crown_base(b, mean_height):
+    """Crown length ratio from the log crown-base height.
+
+    Parameters
+    ----------
+    b : array
+    mean_height : array (m)
+
+    Returns
+    -------
+    ratio, log_jac : arrays
+        ℓ = 1 − e^b/H̄ and log|∂ℓ/∂b|; NaN where H̄ ≤ 0.
+    """
+    mean_height = np.asarray(mean_height, float)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        mean_height = np.where(mean_height > 0, mean_height, np.nan)
+        relative = np.exp(b) / mean_height
+        return 1.0 - relative, np.log(relative)
+
+
+def understory_centroid(lai, height, rho_ratio, slope=INTERCEPTION_SLOPE):
+    """Height above the ground of the centroid of the ground-plus-understory return.
+
+    Parameters
+    ----------
+    lai : array (m²/m²)
+        Understory LAI L_u.
+    height : array (m)
+        Understory height h_u.
+    rho_ratio : array
+        ρv/ρg.
+    slope : float
+        a = k·G·Ω.
+
+    Returns
+    -------
+    array (m)
+        f = h_u·r·(1 − (1 − e^{−q})/q)/(r·(1 − e^{−q}) + e^{−q}), q = a·L_u; 0 without
+        understory.
+    """
+    lai, height, rho_ratio = (np.asarray(a, float) for a in (lai, height, rho_ratio))
+    q = slope * lai
+    with np.errstate(divide="ignore", invalid="ignore"):
+        intercepted = -np.expm1(-q)
+        moment = np.where(q > 0, 1.0 - intercepted / q, 0.0)
+        centroid = height * rho_ratio * moment / (rho_ratio * intercepted + np.exp(-q))
+    return np.where(q > 0, centroid, 0.0)
+
+
+def top_from_stem_gap(tallest, log_gap):
+    """Top height from the tallest stem and the log gap above it.
+
+    Parameters
+    ----------
+    tallest : array (m)
+        H.
+    log_gap : array
+        g.
+
+    Returns
+    -------
+    top, log_jac : arrays
+        top = H + e^g (m) and log|∂top/∂g| = g.
+    """
+    return tallest + np.exp(log_gap), np.asarray(log_gap, float)
+
+
+def stem_gap_from_top(top, tallest):
+    """The log gap above the tallest stem: the inverse of :func:`top_from_stem_gap`.
+
+    Parameters
+    ----------
+    top, tallest : arrays (m)
+
+    Returns
+    -------
+    array
+        g = ln(top − H); NaN where top ≤ H.
+    """
+    gap = np.asarray(top, float) - tallest
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(gap > 0, np.log(gap), np.nan)
+
+
+#: Column code of a parameter held fixed in a ridge map's inputs (its value is passed).
+FIXED = -1
+
+
+def ridges_from_unbounded(
+    u, x, log_jac, joint, base, centroid, inputs, top_sds, slope, *, backend="auto"
+):
+    """Overwrite the ridge coordinates' columns of x and log_jac with physical values.
+
+    Parameters
+    ----------
+    u : array (n, k)
+        Unbounded coordinates.
+    x, log_jac : arrays (n, k)
+        Values and log|dx/du| per column from the priors' maps; the ridge columns are
+        overwritten in place.
+    joint : tuple or None
+        (cover column, PAI column, cover bounds, PAI bounds) of the cover–PAI coordinates.
+    base : int or None
+        Column of the crown-base coordinate (the crown length ratio's).
+    centroid : tuple or None
+        (ground column, lower, stretch) of the ground-centroid coordinate.
+    inputs : (array of int, array of float)
+        Columns of x holding top height, height sd, understory LAI, understory height and
+        ρv/ρg, each a column or :data:`FIXED` with its value in the second array.
+    top_sds : float
+        Mean tree height = top − ``top_sds``·sd.
+    slope : float
+        a = k·G·Ω of the instrument (:func:`to_cover_pai`).
+    backend : str
+        ``"auto"``, ``"numba"`` or ``"numpy"`` (:func:`forward.backends.resolve`).
+
+    Notes
+    -----
+    Cover and PAI from (s, v) by :func:`to_cover_pai_bounded`; ℓ = 1 − e^b/H̄ by
+    :func:`ratio_from_crown_base`; z_g = c − f(L_u, h_u, r) by :func:`understory_centroid`.
+    """
+    if resolve(backend) == "numba":
+        if joint is not None:
+            c, a, cover_bounds, pai_bounds = joint
+            _cover_pai_compiled(u, x, log_jac, c, a, cover_bounds, pai_bounds, slope)
+        if base is not None or centroid is not None:
+            columns, fixed = inputs
+            _crown_and_ground_compiled(
+                u, x, log_jac, base, centroid, columns, fixed, top_sds, slope
+            )
+        return
+    columns, fixed = inputs
+    top, sd, lai, height, ratio = (
+        x[:, col] if col != FIXED else value for col, value in zip(columns, fixed)
+    )
+    if joint is not None:
+        c, a, cover_bounds, pai_bounds = joint
+        x[:, c], x[:, a], log_jac[:, c] = to_cover_pai_bounded(
+            u[:, c], u[:, a], cover_bounds, pai_bounds, slope
+        )
+        log_jac[:, a] = 0.0
+    if base is not None:
+        x[:, base], log_jac[:, base] = ratio_from_crown_base(u[:, base], top - top_sds * sd)
+    if centroid is not None:
+        g, lower, stretch = centroid
+        level = lower + (x[:, g] - lower) * stretch
+        x[:, g] = level - understory_centroid(lai, height, ratio, slope)
+        log_jac[:, g] += np.log(stretch)
+
+
+# The crown-base and ground-centroid maps compiled (the twins of the numpy maps above).
+# error_model="numpy": x/0 gives ±inf or NaN, as in the numpy maps, instead of raising.
+
+
+@jit(error_model="numpy")
+def _value(x, r, column, fixed):
+    return x[r, column] if column != FIXED else fixed
+
+
+@jit(error_model="numpy")
+def _crown_and_ground(u, x, log_jac, base, centroid, columns, fixed, top_sds, slope):
+    """Crown length ratio from the crown base (``base`` ≥ 0: its column) and ground
+    elevation from the ground-plus-understory centroid (``centroid``: column, lower,
+    stretch; column < 0 for none). ``columns``/``fixed``: top height, height sd,
+    understory LAI, understory height, ρv/ρg, each a column of x or FIXED and a value."""
+    g = int(centroid[0])
+    for r in range(u.shape[0]):
+        if base >= 0:
+            top = _value(x, r, columns[0], fixed[0])
+            mean = top - top_sds * _value(x, r, columns[1], fixed[1])
+            mean = mean if mean > 0.0 else math.nan
+            relative = math.exp(u[r, base]) / mean
+            x[r, base] = 1.0 - relative
+            log_jac[r, base] = math.log(relative)
+        if g >= 0:
+            lai = _value(x, r, columns[2], fixed[2])
+            height = _value(x, r, columns[3], fixed[3])
+            ratio = _value(x, r, columns[4], fixed[4])
+            q = slope * lai
+            lift = 0.0
+            if q > 0.0:
+                intercepted = -math.expm1(-q)
+                moment = 1.0 - intercepted / q
+                lift = height * ratio * moment / (ratio * intercepted + math.exp(-q))
+            lower, stretch = centroid[1], centroid[2]
+            x[r, g] = lower + (x[r, g] - lower) * stretch - lift
+            log_jac[r, g] += math.log(stretch)
+
+
+def _crown_and_ground_compiled(u, x, log_jac, base, centroid, columns, fixed, top_sds, slope):
+    """Write the crown length ratio and the ground elevation from their ridge coordinates
+    in place (:func:`_crown_and_ground`); ``base`` None or ``centroid`` None skip one."""
+    centroid = np.array([-1.0, 0.0, 1.0] if centroid is None else centroid, float)
+    _crown_and_ground(
+        u, x, log_jac, -1 if base is None else base, centroid, columns, fixed, top_sds, slope
+    )

@@ -1,0 +1,356 @@
+"""The emcee run: the ensemble from its start to convergence by the autocorrelation time.
+
+:func:`run_sampler` starts the walkers around the MAP (:mod:`.start`), or resumes a
+stored chain, and samples in chunks (:mod:`.ensemble`) with a mixture of moves
+(:mod:`.moves`) until the chain is ``tau_multiple`` integrated autocorrelation times
+long and τ stable; adaptive moves (:mod:`.moves.chain_t`) are fitted at a few early steps.
+"""
+
+import time
+from dataclasses import dataclass, field
+
+import emcee
+import numpy as np
+from tqdm.auto import tqdm
+
+from .ensemble import BatchedSampler, sample_in_chunks
+from .moves import MOVES
+from .moves.chain_t import fit_moves, record_fit, refit_on_resume, worth_refitting
+from .start import Mode, distinct_modes, find_map, initial_ball, laplace_covariance
+
+
+@dataclass(frozen=True)
+class SamplerSettings:
+    """Settings of the ensemble sampler.
+
+    Parameters
+    ----------
+    n_walkers : int
+        Walkers (raised to 2·ndim + 2 if smaller). The ``ensemble-t`` move fits each
+        half's proposal to the other half, so it gains from more walkers than DE does.
+    max_steps : int
+        Cap on steps; a run that hits it unconverged is flagged.
+    check_every : int
+        Steps between convergence checks, at least (with τ of a few tens, 50 τ is soon
+        reached, and sparser checks overshoot it).
+    check_growth : float
+        Steps between checks as a fraction of the chain so far, when that is more than
+        ``check_every`` (each check costs time in proportion to the chain's length, so
+        checks grow sparser as it grows: the total stays in proportion to the chain).
+    tau_multiple : float
+        The chain must be at least this many integrated autocorrelation times long.
+    tau_tolerance : float
+        Largest relative change of τ between checks for τ to count as stable.
+    burn_taus : float
+        Burn-in discarded before τ is estimated and from the results: this many times the
+        previous estimate of the largest τ, and never more than a third of the chain.
+    tau_resolution : int
+        Each check estimates τ on the chain thinned by the previous estimate of the
+        smallest τ over this (emcee's ``thin``; τ comes back in steps): steps a tenth of
+        τ apart carry the same information, at a fraction of the cost.
+    candidates : int
+        Prior draws scored to pick the optimiser's starts.
+    starts : int
+        Optimiser starts (the best candidates), each run for ``screen_iterations``.
+    screen_iterations : int
+        L-BFGS iterations of each start before the best are polished.
+    polish : int
+        Screened starts, the best ones at least :data:`.start.POLISH_SPACING` apart, run
+        on to convergence: the best few of many prior draws often share one basin, and a
+        wrong basin is one the ensemble never leaves.
+    ball : float
+        Scale of the initial balls: walkers start from N(mode, ball²·Σ) with Σ the Laplace
+        covariance at the mode.
+    mode_window : float
+        Polished optima within this much of the best log-posterior, and in distinct
+        basins, each start some walkers (in proportion to their Laplace mass
+        exp(log p)·√det Σ); 0 (the default) starts every walker around the MAP. Walkers
+        then cross between basins only by rare DE jumps, so long runs seldom converge.
+    moves : tuple of (str, float)
+        Move mixture: names from :data:`.moves.MOVES` and their weights. DE moves along
+        the ensemble's differences; ``ensemble-t`` draws independent proposals from a
+        Student t fitted to the other half of the ensemble, nearly fresh draws where the
+        posterior is close to Gaussian in the sampler's coordinates; ``chain-t`` draws
+        them from a t fitted to the chain's own steps at the ``fit_steps``
+        (``studies/inversion_speed.py --moves`` compares mixtures).
+    fit_steps : tuple of int
+        Steps at which the ``chain-t`` move is fitted to the second half of the chain so
+        far. The first is always made; each later one only while
+        :func:`.moves.chain_t.worth_refitting`. The steps before the last fit are
+        burn-in: from then on the proposal is fixed and the chain an exact MCMC chain.
+    fit_fraction : float
+        A later fit at step f is made only if the run, at ``tau_multiple`` times the
+        latest τ and at most ``max_steps``, is expected to last at least f /
+        ``fit_fraction`` steps: an easy shot stops fitting early, a slow one refits until
+        its t spans the posterior's tails.
+    """
+
+    n_walkers: int = 64
+    max_steps: int = 20_000
+    check_every: int = 100
+    check_growth: float = 0.1
+    tau_multiple: float = 50.0
+    tau_tolerance: float = 0.05
+    burn_taus: float = 5.0
+    tau_resolution: int = 10
+    candidates: int = 4096
+    starts: int = 32
+    screen_iterations: int = 30
+    polish: int = 3
+    ball: float = 1.0
+    mode_window: float = 0.0
+    moves: tuple = (("de", 0.4), ("ensemble-t", 0.3), ("chain-t", 0.3))
+    fit_steps: tuple = (100, 200, 400, 800, 1600, 3200)
+    fit_fraction: float = 0.25
+
+
+@dataclass
+class SamplerRun:
+    """Outcome of :func:`run_sampler` (chain arrays exclude nothing: burn-in is ``burn``)."""
+
+    chain: np.ndarray  # (steps, walkers, ndim), unbounded coordinates
+    log_prob: np.ndarray  # (steps, walkers)
+    blobs: np.ndarray  # (steps, walkers, n_blobs)
+    tau: np.ndarray
+    tau_history: list
+    acceptance: np.ndarray
+    converged: bool
+    burn: int
+    thin: int
+    flags: list = field(default_factory=list)
+    start_modes: int = 1  # basins the walkers started in (0 for a resumed chain)
+    seconds: dict = field(default_factory=dict)  # "start" (MAP search, ball), "sampling"
+
+
+def _check_coordinates(backend, coordinates, resume):
+    """Refuse to resume a chain sampled in other coordinates; label a new one."""
+    with backend.open("a") as handle:
+        group = handle[backend.name]
+        stored = group.attrs.get("lidarinv_coordinates")
+        if resume and stored != coordinates:
+            raise ValueError(
+                f"{backend.filename} [{backend.name}] holds a chain sampled in other "
+                f"coordinates ({stored or 'unlabelled'}), not {coordinates}: "
+                "write to a new file or group"
+            )
+        group.attrs["lidarinv_coordinates"] = coordinates
+
+
+def burn_in(n_steps, tau, burn_taus, floor=0) -> int:
+    """Steps to discard from the start of a chain.
+
+    Parameters
+    ----------
+    n_steps : int
+    tau : array (steps)
+        The latest τ per coordinate.
+    burn_taus : float
+    floor : int
+        The steps before the moves last adapted.
+
+    Returns
+    -------
+    int
+        ``burn_taus`` times the largest finite τ, at most a third of the chain (a third
+        while τ is unknown), and never fewer than ``floor``.
+    """
+    third = n_steps // 3
+    if not np.all(np.isfinite(tau)):
+        return max(floor, third)
+    return max(floor, min(third, int(np.ceil(burn_taus * np.max(tau)))))
+
+
+def _following_check(iteration, settings: SamplerSettings) -> int:
+    """The step of the convergence check after one at ``iteration``."""
+    return iteration + max(settings.check_every, int(settings.check_growth * iteration))
+
+
+def _may_converge(iteration, tau, settings: SamplerSettings, floor=0) -> bool:
+    """Whether a check at ``iteration`` could end the run, the previous check having
+    estimated ``tau``. It cannot where the chain after burn-in is no longer than
+    tau_multiple·max(τ)/(1 + tau_tolerance): a new τ short enough for that chain would
+    differ from the previous one by more than the tolerance. A check is skipped only where
+    the one after it could not end the run either, so the check before the first that
+    could is still made; skipping spares their cost."""
+    if not np.all(np.isfinite(tau)):
+        return True
+    kept = iteration - burn_in(iteration, tau, settings.burn_taus, floor)
+    return kept > settings.tau_multiple * np.max(tau) / (1.0 + settings.tau_tolerance)
+
+
+def _show_target(bar, next_check, discard, tau, s) -> None:
+    """Count the bar towards the steps convergence needs by the latest τ (burn-in plus
+    ``tau_multiple`` τ, at least the next check), within the step cap, rather than
+    towards the cap itself."""
+    if bar.disable or not np.all(np.isfinite(tau)):
+        return
+    needed = discard + s.tau_multiple * float(np.max(tau))
+    bar.total = int(min(s.max_steps, max(needed, next_check)))
+    bar.refresh()
+
+
+def run_sampler(
+    log_posterior,
+    space,
+    rng,
+    settings: SamplerSettings | None = None,
+    backend=None,
+    progress=False,
+    start=None,
+    coordinates=None,
+) -> SamplerRun:
+    """Sample ``log_posterior`` (unbounded coordinates, emcee blob convention) to convergence.
+
+    Parameters
+    ----------
+    log_posterior : callable
+        Vectorised (n, ndim) → (n, 1 + n_blobs), e.g.
+        :class:`lidarinv.inference.posterior.LogPosterior`.
+    space : ParameterSpace
+    rng : numpy.random.Generator
+    settings : SamplerSettings
+    backend : emcee.backends.Backend, optional
+        E.g. an ``HDFBackend``; a backend that already holds steps is resumed.
+    progress : bool
+        Show a progress bar.
+    start : array (ndim,), optional
+        Centre of the initial ball (unbounded); default the MAP estimate.
+    coordinates : str, optional
+        What the sampled coordinates are (see
+        :meth:`lidarinv.inference.model.space.ParameterSpace.signature`); stored with an
+        HDF5 backend's chain, and a chain stored under another is not resumed.
+
+    Returns
+    -------
+    SamplerRun
+        The chain (unbounded coordinates), log-probabilities and blobs, τ and its
+        history, acceptance, burn-in and thinning, and flags.
+
+    Raises
+    ------
+    ValueError
+        For unknown moves, a stored chain of another shape or other coordinates.
+
+    Notes
+    -----
+    The run stops at the first check where the chain after burn-in is longer than
+    ``tau_multiple``·τ for every coordinate and τ changed by less than
+    ``tau_tolerance`` since the previous check (Foreman-Mackey et al. 2013; Sokal 1997).
+
+    References
+    ----------
+    Foreman-Mackey, D., Hogg, D. W., Lang, D. & Goodman, J. (2013). emcee: the MCMC
+    hammer. *PASP* 125, 306–312.
+    """
+    s = SamplerSettings() if settings is None else settings
+    ndim = space.ndim
+    n_walkers = max(s.n_walkers, 2 * ndim + 2)
+    if n_walkers % 2:
+        n_walkers += 1
+    unknown = sorted({name for name, _ in s.moves} - set(MOVES))
+    if unknown:
+        raise ValueError(f"unknown move(s) {unknown}; known: {sorted(MOVES)}")
+    moves = [(MOVES[name](), weight) for name, weight in s.moves]
+    resume = backend is not None and backend.initialized and backend.iteration > 0
+    if resume and backend.shape != (n_walkers, ndim):
+        raise ValueError(
+            f"the backend holds a chain of shape {backend.shape}, not {(n_walkers, ndim)}"
+        )
+    sampler = BatchedSampler(
+        n_walkers, ndim, log_posterior, moves=moves, backend=backend, vectorize=True
+    )
+    if coordinates is not None and isinstance(backend, emcee.backends.HDFBackend):
+        _check_coordinates(backend, coordinates, resume)
+    log_prob = lambda u: log_posterior(u)[:, 0]  # noqa: E731
+    flags, modes = [], []
+    clock = time.perf_counter()
+    if resume:
+        state = backend.get_last_sample()
+    else:
+        sampler.random_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
+        if start is None:
+            estimate = find_map(log_prob, space, rng, s)
+            modes = distinct_modes(log_prob, estimate, s.mode_window)
+            if not estimate.converged:
+                flags.append("MAP optimiser did not report convergence")
+        else:
+            centre = np.asarray(start, float)
+            modes = [Mode(centre, 0.0, laplace_covariance(log_prob, centre))]
+        state = initial_ball(log_prob, modes, s.ball, n_walkers, rng)
+    seconds = {"start": time.perf_counter() - clock}
+    clock = time.perf_counter()
+    history, tau, converged = [], np.full(ndim, np.inf), False
+    bar = tqdm(total=s.max_steps, disable=not progress, desc="sampling", unit="step",
+               dynamic_ncols=True)  # fmt: skip
+    bar.update(sampler.iteration)
+    next_check = sampler.iteration + s.check_every
+    adaptive = [move for move, _ in moves if hasattr(move, "fit")]
+    # a fit discards the steps before it: none at the last step
+    fits = sorted(step for step in s.fit_steps if sampler.iteration < step < s.max_steps)
+    fits = fits if adaptive else []
+    floor = refit_on_resume(sampler, adaptive, backend) if resume else 0
+    for _ in sample_in_chunks(sampler, state, max(s.max_steps - sampler.iteration, 0)):
+        if fits and sampler.iteration == fits[0]:
+            fits.pop(0)
+            wanted = floor == 0 or worth_refitting(
+                sampler.iteration, tau, s.fit_fraction, s.tau_multiple, s.max_steps
+            )
+            if wanted and fit_moves(sampler, adaptive):
+                floor = sampler.iteration  # an exact MCMC chain from here on
+                record_fit(backend, floor)
+        if sampler.iteration < min(next_check, s.max_steps):
+            continue
+        bar.update(sampler.iteration - bar.n)
+        following = _following_check(sampler.iteration, s)
+        if following < s.max_steps and not _may_converge(following, tau, s, floor):
+            next_check = following  # neither this check nor the next can end the run
+            continue
+        discard = burn_in(sampler.iteration, tau, s.burn_taus, floor)
+        if sampler.iteration - discard < s.check_every:  # too few steps since the last fit
+            next_check = following
+            continue
+        thin = max(1, int(np.min(tau) / s.tau_resolution)) if np.all(np.isfinite(tau)) else 1
+        # NaN where a walker has not moved in the window (a τ not yet known)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            new_tau = sampler.get_autocorr_time(tol=0, quiet=True, discard=discard, thin=thin)
+        history.append((sampler.iteration, new_tau.copy()))
+        stable = np.all(np.abs(new_tau - tau) < s.tau_tolerance * new_tau)
+        long_enough = np.all(sampler.iteration - discard > s.tau_multiple * new_tau)
+        tau = new_tau
+        bar.set_postfix(tau=f"{np.max(tau):.0f}")
+        if long_enough and stable and np.all(np.isfinite(tau)):
+            converged = True
+            break
+        next_check = _following_check(sampler.iteration, s)
+        _show_target(bar, next_check, discard, tau, s)
+    if converged:  # the bar ends full, not at a fraction of the step cap
+        bar.total = sampler.iteration
+        bar.set_postfix_str(f"converged, τ {np.max(tau):.0f}", refresh=False)
+        bar.update(sampler.iteration - bar.n)
+    bar.close()
+    seconds["sampling"] = time.perf_counter() - clock
+    if not converged:
+        flags.append(
+            f"not converged: {sampler.iteration} steps < {s.tau_multiple:g} τ "
+            f"(max τ = {np.max(tau):.0f}) or τ not stable"
+        )
+    acceptance = sampler.acceptance_fraction
+    if np.any(acceptance < 0.05):
+        flags.append(f"low acceptance in {int(np.sum(acceptance < 0.05))} walker(s)")
+    tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else sampler.iteration / 10
+    burn = burn_in(sampler.iteration, tau, s.burn_taus, floor)
+    thin = max(1, int(tau_max / 2))
+    return SamplerRun(
+        chain=sampler.get_chain(),
+        log_prob=sampler.get_log_prob(),
+        blobs=sampler.get_blobs(),
+        tau=tau,
+        tau_history=history,
+        acceptance=acceptance,
+        converged=converged,
+        burn=burn,
+        thin=thin,
+        flags=flags,
+        start_modes=len(modes),
+        seconds=seconds,
+    )

@@ -1,0 +1,302 @@
+"""The settings of an inversion that are not priors: one picklable record per run.
+
+:class:`InversionSettings` controls a whole inversion (stored with its results), with
+:class:`RealisationSettings` (the simulated discrepancy), ``SamplerSettings``
+(:mod:`.sampling.sampler`) and :class:`forward.expected.ModelSettings` nested in it. A
+priors file holds, beside the parameters' priors, tables that set some of these
+(:data:`SETTINGS_TABLES`: ``[favd]``, ``[ground]``, ``[discrepancy]``), read here.
+"""
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from forward.engine import AccuracySettings
+from forward.expected import ModelSettings
+from lidarinv.io.priors_file import read_priors_file, read_toml
+from lidarinv.observe.processing import ProcessingSettings
+
+from .likelihood.discrepancy import DISCREPANCY_MODELS
+from .model.coordinates import DEFAULT_RIDGES
+from .model.prior_table import DEFAULT_UNBOUNDED
+from .model.tallest_stem import TALLEST_STEM_LATENTS
+from .sampling.sampler import SamplerSettings
+
+#: The explicit engine's quadrature for the discrepancy (see ``RealisationSettings``).
+DISCREPANCY_QUADRATURE = AccuracySettings(radial_nodes=2, angular_nodes=4)
+
+
+@dataclass(frozen=True)
+class RealisationSettings:
+    """How the discrepancy covariance is simulated.
+
+    Parameters
+    ----------
+    count : int
+        Explicit realisations K, one per parameter draw.
+    shrinkage : float
+        γ ∈ [0, 1], the weight of the diagonal in C = (1 − γ)·S + γ·diag(S).
+    ball : float
+        Scale of the Laplace ball the draws come from (as ``SamplerSettings.ball``).
+    plot_diameters : float
+        Side of the square plot each stand is realised on, in footprint diameters
+        (1/e² diameters, 4σf); the footprint sits at its centre.
+    accuracy : forward.engine.AccuracySettings
+        Quadrature of the explicit engine: 8 columns a crown (2 rings × 4 angles), a
+        third of the engine's default cost; the covariance moves less with it than
+        between two sets of realisations.
+    """
+
+    count: int = 64
+    shrinkage: float = 0.3
+    ball: float = 1.0
+    plot_diameters: float = 3.0
+    accuracy: AccuracySettings = DISCREPANCY_QUADRATURE
+
+    def __post_init__(self):
+        if self.count < 2:
+            raise ValueError(f"the discrepancy needs at least 2 realisations, got {self.count}")
+        if not 0.0 <= self.shrinkage <= 1.0:
+            raise ValueError(f"shrinkage must lie in [0, 1], got {self.shrinkage}")
+        if not (self.ball > 0 and self.plot_diameters > 0):
+            raise ValueError("ball and plot_diameters must be positive")
+
+
+@dataclass(frozen=True)
+class InversionSettings:
+    """Everything that controls one inversion (picklable; stored with the results).
+
+    Parameters
+    ----------
+    instrument : str or None
+        Instrument preset (``gedi``, ``lvis``, ``slicer``) overriding the one the file
+        names; None for the file's. The bin height is taken from the observation.
+    use_measured_pulse : bool
+        Use the shot's transmit pulse when the file has one.
+    processing : lidarinv.observe.ProcessingSettings or None
+        How the shot is analysed (noise, signal extent, ground); None for the defaults of
+        its instrument, the same as ``lidarinv metrics`` uses.
+    marginalise_gain : bool
+        Integrate the gain out of the likelihood analytically (:mod:`.likelihood.marginal`) where
+        that is exact: no shot noise, a discrepancy fixed by the observation (not
+        ``"model"``), no censored or saturated bins in the window, and the gain not
+        fixed. The sampler then has one dimension fewer and no gain–ρv/ρg ridge; each
+        posterior sample's gain is drawn from its conditional density. Otherwise, or if
+        False, the gain is sampled.
+    sample_noise : bool
+        Sample the baseline and noise σ; if False, hold them at the shot's estimates from
+        the signal-free bins (two fewer free parameters; a GEDI window has hundreds of such
+        bins, so the estimates are far tighter than anything else in the posterior). A
+        priors-file entry for either still takes precedence.
+    ground_prior_sd_m : float (m) or None
+        Sd of the ground-elevation prior, a normal centred on the detected ground peak;
+        None for one bin height, or the peak fit's uncertainty if larger. Low vegetation
+        pulls the detected peak up, so a prior much narrower drags the posterior with it;
+        one as wide as the pulse lets the ground trade off against the understory.
+    margin_above_m, margin_below_m : float (m)
+        Window beyond the detected signal; above, at least half the detected canopy
+        height too. Signal-free bins above the canopy constrain the top height, and the
+        top-height prior ends where the canopy would leave the window.
+    shot_factor : float (DN)
+        Shot-noise variance per unit signal, g.
+    discrepancy : float
+        η, the model-discrepancy sd as a fraction of the signal (the one random arrangement
+        of trees in a footprint against the expected stand; ``studies/discrepancy.py``
+        measures it on explicit realisations).
+    discrepancy_model : str
+        Which signal the discrepancy is a fraction of (:mod:`.likelihood.discrepancy`): ``model``,
+        each row's model waveform, or ``observed``, the shot's own signal; or
+        ``realisations``, a covariance between bins simulated from explicit stands around
+        a pilot MAP found with ``observed`` (:mod:`.realisations`).
+    realisations : RealisationSettings
+        How the ``realisations`` covariance is simulated.
+    tallest_stem : bool
+        Condition the footprint on its tallest stem (within the 1/e² disc): latent
+        parameters for its height, whose law the stand gives, and its position
+        (:class:`.model.stand.StandMapping`): one
+        footprint rarely holds a stem in the upper tail of the stand's heights, and a
+        Gaussian discrepancy, symmetric, cannot say so. The ``realisations`` covariance
+        then holds what remains once each stand's own tallest stem is accounted for. A
+        priors file turns it on with a table for either latent (e.g.
+        ``[tallest_stem_height]`` with ``free = true``, or a prior or a value).
+    favd_range : (float, float) (m²/m³) or None
+        Prior support of the implied foliage area volume density, a joint constraint on
+        cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None
+        for none (:data:`.model.parameters.PLAUSIBLE_FAVD_RANGE` is one choice).
+    shape_pair : (str, str)
+        Crown shapes mixed by ``cone_fraction``.
+    ridges : tuple of str
+        Ridge-straightening sampling coordinates (:mod:`.model.coordinates`; the posterior
+        is the same, the chains mix faster): all of
+        :data:`.model.coordinates.RIDGE_COORDINATES` by default, ``()`` samples each
+        parameter on its own.
+    unbounded : str
+        Map of the bounded priors to the real line the sampler moves on
+        (:data:`.model.prior_table.UNBOUNDED_MAPS`): ``"logit"`` (logistic CDF, the default) or
+        ``"probit"`` (normal CDF, lighter tails where a parameter piles against a bound).
+        The posterior is the same; only the coordinates the ensemble moves in change.
+    priors : dict
+        Parameter overrides ``{name: {"prior": …, "fixed": …}}`` (see
+        :func:`lidarinv.io.priors_file.read_priors_file`).
+    sampler : SamplerSettings
+    model : forward.expected.ModelSettings
+        Its ``backend`` also chooses the inversion's compiled or numpy paths (stand
+        mapping, ridge maps).
+    """
+
+    instrument: str | None = None
+    use_measured_pulse: bool = True
+    processing: ProcessingSettings | None = None
+    marginalise_gain: bool = True
+    sample_noise: bool = True
+    ground_prior_sd_m: float | None = None
+    margin_above_m: float = 10.0
+    margin_below_m: float = 5.0
+    shot_factor: float = 0.0
+    discrepancy: float = 0.2
+    discrepancy_model: str = "realisations"
+    favd_range: tuple | None = None
+    shape_pair: tuple = ("cone", "ellipsoid")
+    ridges: tuple = DEFAULT_RIDGES
+    unbounded: str = DEFAULT_UNBOUNDED
+    priors: dict = field(default_factory=dict)
+    sampler: SamplerSettings = field(default_factory=SamplerSettings)
+    model: ModelSettings = field(default_factory=ModelSettings)
+    realisations: RealisationSettings = field(default_factory=RealisationSettings)
+    tallest_stem: bool = False
+
+    @classmethod
+    def from_priors_file(cls, path, **changes) -> "InversionSettings":
+        """Settings with the priors and settings tables of a priors file.
+
+        Parameters
+        ----------
+        path : path
+            A TOML priors file: parameter tables (:func:`lidarinv.io.priors_file.
+            read_priors_file`) and the settings tables of :data:`SETTINGS_TABLES`.
+        **changes
+            Other settings; a file's table does not override one given here.
+
+        Returns
+        -------
+        InversionSettings
+        """
+        priors = read_priors_file(path)
+        tables = read_settings_tables(path)
+        favd = tables.get("favd")
+        if favd is not None:
+            changes.setdefault("favd_range", favd["range"])
+        ground = tables.get("ground")
+        if ground is not None:
+            changes.setdefault("ground_prior_sd_m", ground["prior_sd"])
+        if set(TALLEST_STEM_LATENTS) & set(priors):  # a table for a latent turns them on
+            changes.setdefault("tallest_stem", True)
+        discrepancy = tables.get("discrepancy", {})
+        if "model" in discrepancy:
+            changes.setdefault("discrepancy_model", discrepancy["model"])
+        if "eta" in discrepancy:
+            changes.setdefault("discrepancy", discrepancy["eta"])
+        if "count" in discrepancy:
+            changes.setdefault("realisations", RealisationSettings(count=discrepancy["count"]))
+        return cls(priors=priors, **changes)
+
+    def describe(self) -> dict:
+        """The settings as a JSON-ready dict (stored with each result).
+
+        Returns
+        -------
+        dict
+        """
+        nested = ("priors", "sampler", "model", "realisations", "processing")
+        out = {k: v for k, v in self.__dict__.items() if k not in nested}
+        out["processing"] = None if self.processing is None else asdict(self.processing)
+        out["realisations"] = asdict(self.realisations)
+        out["shape_pair"] = list(self.shape_pair)
+        out["ridges"] = list(self.ridges)
+        out["favd_range"] = None if self.favd_range is None else list(self.favd_range)
+        out["sampler"] = {k: v for k, v in self.sampler.__dict__.items()}
+        out["sampler"]["moves"] = [list(m) for m in self.sampler.moves]
+        out["model"] = dict(self.model.__dict__)
+        out["priors"] = {
+            name: {
+                "fixed": change.get("fixed"),
+                "prior": change["prior"].describe() if "prior" in change else None,
+            }
+            for name, change in self.priors.items()
+        }
+        return out
+
+
+def read_settings_tables(path) -> dict:
+    """The settings tables of a priors file (:data:`SETTINGS_TABLES`), checked.
+
+    Parameters
+    ----------
+    path : path
+        TOML priors file.
+
+    Returns
+    -------
+    dict
+        ``"favd"``: ``{"range": (lower, upper)}`` (m²/m³); ``"ground"``:
+        ``{"prior_sd": value}`` (m); ``"discrepancy"``: any of ``model``, ``eta`` and
+        ``count``; for the tables the file has.
+
+    Raises
+    ------
+    ValueError
+        Naming the file, the table and the problem.
+    """
+    table = read_toml(path)
+    return {
+        name: reader(path, table[name]) for name, reader in SETTINGS_TABLES.items() if name in table
+    }
+
+
+def _favd_range(path, spec) -> dict:
+    unknown = sorted(set(spec) - {"lower", "upper"})
+    if unknown:
+        raise ValueError(f"{path}: [favd] takes lower and upper (m2/m3), not {unknown}")
+    low, high = float(spec.get("lower", 0.0)), float(spec.get("upper", np.inf))
+    if not (0.0 <= low < high):
+        raise ValueError(f"{path}: [favd] needs 0 <= lower < upper, got {low}, {high}")
+    return {"range": (low, high)}
+
+
+def _ground_prior(path, spec) -> dict:
+    unknown = sorted(set(spec) - {"prior_sd"})
+    if unknown:
+        raise ValueError(f"{path}: [ground] takes prior_sd (m), not {unknown}")
+    sd = float(spec.get("prior_sd", np.nan))
+    if not (np.isfinite(sd) and sd > 0):
+        raise ValueError(f"{path}: [ground] prior_sd must be a positive number of metres")
+    return {"prior_sd": sd}
+
+
+def _discrepancy(path, spec) -> dict:
+    unknown = sorted(set(spec) - {"model", "eta", "count"})
+    if unknown:
+        raise ValueError(f"{path}: [discrepancy] takes model, eta and count, not {unknown}")
+    out = {}
+    if "model" in spec:
+        if spec["model"] not in DISCREPANCY_MODELS:
+            raise ValueError(
+                f"{path}: [discrepancy] model {spec['model']!r} is not one of "
+                f"{sorted(DISCREPANCY_MODELS)}"
+            )
+        out["model"] = spec["model"]
+    if "eta" in spec:
+        eta = float(spec["eta"])
+        if not (np.isfinite(eta) and eta >= 0):
+            raise ValueError(f"{path}: [discrepancy] eta must be a number ≥ 0")
+        out["eta"] = eta
+    if "count" in spec:
+        count = spec["count"]
+        if not (isinstance(count, int) and count >= 2):
+            raise ValueError(f"{path}: [discrepancy] count must be an integer ≥ 2")
+        out["count"] = count
+    return out
+
+
+#: Priors-file tables that set InversionSettings rather than a parameter's prior.
+SETTINGS_TABLES = {"favd": _favd_range, "ground": _ground_prior, "discrepancy": _discrepancy}

@@ -1,0 +1,249 @@
+"""One shot made ready for inversion, once: instrument, analysis, window and noise model.
+
+:meth:`Shot.from_observation` takes the instrument preset with the observation's bin (and
+its transmit pulse, if any), analyses the waveform (noise, signal extent, ground peak:
+:func:`lidarinv.observe.analyse.analyse`), chooses the window of bins the likelihood reads
+(:class:`WindowData`) and keeps the noise estimates. Everything later stages need from the
+observation comes from here: the shot's nuisance priors (:meth:`Shot.nuisance_priors`),
+the noise held fixed where it is not sampled (:meth:`Shot.noise_overrides`), the window.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from forward.instrument import Instrument
+from lidarinv.observe.analyse import analyse
+from lidarinv.observe.instrument import shot_instrument
+from lidarinv.observe.observation import Observation
+
+
+@dataclass(frozen=True)
+class WindowData:
+    """The part of an observation that enters the likelihood.
+
+    Attributes
+    ----------
+    axis : array (m)
+        Bin centres on the observation's axis (ascending).
+    samples : array (DN)
+    censored : array of bool
+        Samples at the noise floor (true value ≤ ``floor``).
+    saturated : array of bool
+        Samples at the digitiser maximum (true value ≥ ``saturation``).
+    floor, saturation : float (DN)
+    """
+
+    axis: np.ndarray
+    samples: np.ndarray
+    censored: np.ndarray
+    saturated: np.ndarray
+    floor: float = np.nan
+    saturation: float = np.nan
+
+    @classmethod
+    def from_observation(cls, obs: Observation, lo: int, hi: int) -> "WindowData":
+        """Bins ``lo:hi`` of an observation.
+
+        Parameters
+        ----------
+        obs : Observation
+        lo, hi : int
+
+        Returns
+        -------
+        WindowData
+
+        Raises
+        ------
+        ValueError
+            For a window of fewer than 3 bins.
+        """
+        if hi - lo < 3:
+            raise ValueError(f"shot {obs.shot_id}: the inversion window holds {hi - lo} bins")
+        part = slice(lo, hi)
+        return cls(
+            axis=obs.axis[part].copy(),
+            samples=obs.samples[part].copy(),
+            censored=obs.censored_mask[part].copy(),
+            saturated=obs.saturated_mask[part].copy(),
+            floor=float(obs.floor),
+            saturation=float(obs.saturation),
+        )
+
+    @property
+    def exact(self) -> np.ndarray:
+        """Bins recorded exactly: neither censored nor saturated."""
+        return ~(self.censored | self.saturated)
+
+
+def pulse_quantiles(pulse, tail):
+    """Height offsets below and above which a fraction ``tail`` of the pulse lies.
+
+    Parameters
+    ----------
+    pulse : GaussianPulse or MeasuredPulse
+    tail : float
+        Fraction of the pulse's area in each tail.
+
+    Returns
+    -------
+    (float, float) (m)
+        The ``tail`` and 1 − ``tail`` quantiles (a measured pulse's ``support`` is its
+        whole sampled span).
+    """
+    low, high = pulse.support(tail)
+    grid = np.linspace(low, high, 4001)
+    cdf = pulse.cdf(grid)
+    return float(np.interp(tail, cdf, grid)), float(np.interp(1.0 - tail, cdf, grid))
+
+
+@dataclass(frozen=True)
+class Shot:
+    """An observation made ready for inversion.
+
+    Attributes
+    ----------
+    observation : Observation
+    instrument : Instrument
+        See :func:`lidarinv.observe.instrument.shot_instrument`.
+    analysis : lidarinv.observe.analyse.ShotAnalysis
+        Noise mean and σ (DN), signal extent, ground peak and its uncertainty (m).
+    window : WindowData
+        The bins the likelihood reads.
+    pulse_range : (float, float) (m)
+        Offsets below and above which 1e-3 of the pulse lies.
+    """
+
+    observation: Observation
+    instrument: Instrument
+    analysis: object
+    window: WindowData
+    pulse_range: tuple
+
+    @classmethod
+    def from_observation(cls, obs: Observation, settings) -> "Shot":
+        """Analyse an observation and choose its window.
+
+        Parameters
+        ----------
+        obs : Observation
+        settings : InversionSettings
+            ``instrument``, ``use_measured_pulse``, ``processing`` and the window margins
+            ``margin_above_m``, ``margin_below_m`` (m).
+
+        Returns
+        -------
+        Shot
+
+        Raises
+        ------
+        ValueError
+            If the shot has no usable signal or ground peak, or its window no energy
+            above the noise mean.
+
+        Notes
+        -----
+        The shot is analysed exactly as ``lidarinv metrics`` analyses it
+        (:func:`lidarinv.observe.analyse`, the instrument's processing defaults unless
+        ``processing`` is given), so the commands agree on its status. The window runs
+        from ``margin_below_m`` below the lower of the signal end and the ground's pulse
+        to the signal start plus the larger of ``margin_above_m`` and half the detected
+        canopy height: signal-free bins above the canopy constrain the top height.
+        """
+        instrument = shot_instrument(
+            obs, settings.instrument, measured_pulse=settings.use_measured_pulse
+        )
+        pulse_low, pulse_high = pulse_quantiles(instrument.pulse, 1e-3)
+        analysis = analyse(obs, settings.processing, instrument=instrument)
+        if not analysis.ok:
+            raise ValueError(f"shot {obs.shot_id}: {analysis.status}: {analysis.reason}")
+        bottom = min(analysis.signal_end, analysis.ground + pulse_low) - settings.margin_below_m
+        height = analysis.signal_start - analysis.ground
+        top = analysis.signal_start + max(settings.margin_above_m, 0.5 * height)
+        lo = max(int(np.searchsorted(obs.axis, bottom, side="left")), 0)
+        hi = min(int(np.searchsorted(obs.axis, top, side="right")), obs.n_bins)
+        window = WindowData.from_observation(obs, lo, hi)
+        energy = float(np.sum(np.clip(window.samples - analysis.noise_mean, 0.0, None)))
+        if not energy > 0:
+            raise ValueError(f"shot {obs.shot_id}: no energy above the noise mean in the window")
+        return cls(obs, instrument, analysis, window, (pulse_low, pulse_high))
+
+    @property
+    def noise_mean(self) -> float:
+        """The noise mean b̂ (DN) of the analysis."""
+        return float(self.analysis.noise_mean)
+
+    @property
+    def noise_sigma(self) -> float:
+        """The noise σ̂ (DN) of the analysis."""
+        return float(self.analysis.noise_sigma)
+
+    def nuisance_priors(self, ground_prior_sd_m=None, top_range=(1.0, 80.0)) -> dict:
+        """The shot's priors on the observation model and on the top height.
+
+        Parameters
+        ----------
+        ground_prior_sd_m : float (m) or None
+            Sd of the ground-elevation prior; None for the larger of one bin height and
+            the ground peak fit's uncertainty.
+        top_range : (float, float) (m)
+            The top height's prior range before the window cuts it.
+
+        Returns
+        -------
+        dict
+            ``ground_elevation``: N(ĝ, sd²) truncated at ±max(6 sd, the pulse's width);
+            ``gain``: log-uniform over a factor 20 either side of the window's energy
+            above b̂; ``baseline``: uniform b̂ ± 5σ̂; ``noise_sigma``: log-uniform
+            [σ̂/3, 3σ̂]; ``top_height``: uniform up to where the canopy leaves the window.
+
+        Raises
+        ------
+        ValueError
+            For a non-positive ground sd, or a window without room above the ground.
+        """
+        from .model.priors import LogUniform, TruncatedNormal, Uniform
+
+        a, window = self.analysis, self.window
+        b, sigma = self.noise_mean, self.noise_sigma
+        energy = float(np.sum(np.clip(window.samples - b, 0.0, None)))
+        pulse_low, pulse_high = self.pulse_range
+        g, g_sd = a.ground, ground_prior_sd_m
+        if g_sd is None:
+            g_sd = max(float(a.ground_uncertainty), self.observation.bin_size)
+        if not (np.isfinite(g_sd) and g_sd > 0):
+            raise ValueError(f"ground_prior_sd_m must be positive, got {ground_prior_sd_m}")
+        g_width = max(6.0 * g_sd, pulse_high - pulse_low)
+        # the canopy must fit inside the window, so that empty bins above it constrain it
+        room = window.axis[-1] - g - pulse_high
+        if room <= top_range[0] + 1.0:
+            raise ValueError(
+                f"shot {self.observation.shot_id}: the window leaves no room above the ground"
+            )
+        return {
+            "ground_elevation": TruncatedNormal(g, g_sd, g - g_width, g + g_width),
+            "gain": LogUniform(energy / 20.0, energy * 20.0),
+            "baseline": Uniform(b - 5.0 * sigma, b + 5.0 * sigma),
+            "noise_sigma": LogUniform(sigma / 3.0, sigma * 3.0),
+            "top_height": Uniform(top_range[0], min(top_range[1], room)),
+        }
+
+    def noise_overrides(self, sample_noise=True) -> dict:
+        """The noise mean and σ held at the shot's estimates where they are not sampled.
+
+        Parameters
+        ----------
+        sample_noise : bool
+
+        Returns
+        -------
+        dict
+            ``{"baseline": {"fixed": b̂}, "noise_sigma": {"fixed": σ̂}}``, or ``{}``.
+        """
+        if sample_noise:
+            return {}
+        return {
+            "baseline": {"fixed": self.noise_mean},
+            "noise_sigma": {"fixed": self.noise_sigma},
+        }
