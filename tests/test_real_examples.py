@@ -119,3 +119,23 @@ def test_product_readers():
     assert record["zt"] - record["zg"] == pytest.approx(record["rh"][100], abs=0.02)
     with pytest.raises(ValueError, match="unknown example"):
         example_file("icesat")
+
+
+def test_metrics_and_the_inversion_read_a_shot_alike(gedi, lvis):
+    """The inversion's shot uses the same analysis: same status, ground and extent."""
+    from lidarinv.inference import InversionSettings
+    from lidarinv.inference.shot import Shot
+
+    settings = InversionSettings()
+    for shots, results, _ in (gedi, lvis):
+        for obs, result in list(zip(shots, results))[:6]:
+            quick = analyse(obs, metrics=False)
+            assert quick.rh is None and quick.status == result.status
+            assert quick.ground == result.ground and quick.signal_start == result.signal_start
+            if result.ok:
+                shot = Shot.from_observation(obs, settings)
+                assert shot.analysis.ground == result.ground
+                assert shot.analysis.signal_end == result.signal_end
+            else:
+                with pytest.raises(ValueError, match=result.status):
+                    Shot.from_observation(obs, settings)

@@ -155,7 +155,7 @@ class Shot:
             obs, settings.instrument, measured_pulse=settings.use_measured_pulse
         )
         pulse_low, pulse_high = pulse_quantiles(instrument.pulse, 1e-3)
-        analysis = analyse(obs, settings.processing, instrument=instrument)
+        analysis = analyse(obs, settings.processing, instrument=instrument, metrics=False)
         if not analysis.ok:
             raise ValueError(f"shot {obs.shot_id}: {analysis.status}: {analysis.reason}")
         bottom = min(analysis.signal_end, analysis.ground + pulse_low) - settings.margin_below_m

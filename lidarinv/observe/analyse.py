@@ -208,6 +208,7 @@ def analyse(
     settings: ProcessingSettings | None = None,
     *,
     instrument=None,
+    metrics: bool = True,
 ) -> ShotAnalysis:
     """Noise, signal extent, ground, RH metrics, cover and quality of one shot.
 
@@ -219,6 +220,9 @@ def analyse(
         Default: the processing defaults of the shot's instrument.
     instrument : str or forward.Instrument, optional
         Overrides the instrument the file names (needed when it names none).
+    metrics : bool
+        Compute RH, cover, PAVD and sensitivity; the inversion, which needs only the
+        noise, the signal extent and the ground, turns them off (the status is the same).
 
     Returns
     -------
@@ -302,10 +306,11 @@ def analyse(
     result.ground, result.ground_uncertainty = peak.position, peak.uncertainty
     result.n_modes = peak.n_modes
     result.canopy_height = extent.start - peak.position
-    _metrics(result, obs, smoothed, settings, instrument, np.hypot(pulse_bins, smoothing))
     _geolocate(result, obs)
-    if result.sensitivity < settings.min_sensitivity:
-        result.flags.append("low sensitivity")
+    if metrics:
+        _metrics(result, obs, smoothed, settings, instrument, np.hypot(pulse_bins, smoothing))
+        if result.sensitivity < settings.min_sensitivity:
+            result.flags.append("low sensitivity")
     result.quality = not any(flag in QUALITY_FLAGS for flag in result.flags)
     return result
 
