@@ -168,7 +168,10 @@ def _footprint_sums(
     volume = np.zeros(n_edges + 1)
     foliage = np.zeros(n_edges + 1)
     ground = np.zeros(n_ground + 1)
-    marks = np.empty(2 * max(1, np.max(np.diff(offsets))), np.int64)
+    most = max(1, np.max(np.diff(offsets)))  # crowns listed in the fullest bin
+    marks = np.empty(2 * most, np.int64)
+    hits = np.empty(most + 1, np.int64)
+    distance2 = np.empty(most + 1)
     inv_h = 1.0 / h
     for bi in range(n_bins):
         for bj in range(n_bins):
@@ -183,13 +186,15 @@ def _footprint_sums(
                         continue
                     w = weights[i] * weights[j]
                     z_ground = gx * px + gy * py
-                    count = 0
+                    n_hit = 0  # the bin's crowns over this column, listed without branching
                     for m in range(m0, m1):
                         dx, dy = px - rec[m, 0], py - rec[m, 1]
-                        d2 = dx * dx + dy * dy
-                        if d2 >= rec[m, 2]:
-                            continue
-                        s_low, s_high = _extent(codes[m], np.sqrt(d2) * rec[m, 3])
+                        hits[n_hit], distance2[n_hit] = m, dx * dx + dy * dy
+                        n_hit += distance2[n_hit] < rec[m, 2]
+                    count = 0
+                    for k in range(n_hit):
+                        m = hits[k]
+                        s_low, s_high = _extent(codes[m], np.sqrt(distance2[k]) * rec[m, 3])
                         z_low = rec[m, 4] + s_low * rec[m, 5]
                         z_high = rec[m, 4] + s_high * rec[m, 5]
                         if sloped:  # foliage below the local ground surface does not exist

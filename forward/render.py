@@ -41,7 +41,7 @@ def render_waveform(
     n, m = heights.size, sim.oversampling
     gap_edges = profiles.gap_edges
     canopy = rho_v * _convolve_layers(sim, profiles.layer_return, first, n)
-    ground_part = ground.reflectance * _ground_samples(sim, *ground_deposit, heights)
+    ground_part = ground.reflectance * ground_samples(sim, *ground_deposit, heights)
     ground_gap = float(gap_edges[0])  # P̄ at the ground: all foliage lies above it
     accuracy = sim.accuracy
     return Waveform(
@@ -84,7 +84,7 @@ def _convolve_layers(sim, layer_energy, first, n_bins):
     return out
 
 
-def _ground_samples(sim, nodes, weights, heights):
+def ground_samples(sim, nodes, weights, heights):
     """Ground samples per unit ρg: each node's weight times the pulse at its height."""
     dz = sim.instrument.bin_height
     low, high = sim.pulse_support

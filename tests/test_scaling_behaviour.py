@@ -4,7 +4,7 @@ import numpy as np
 
 import forward as fw
 import forward.gap as gap_module
-from forward.render import _ground_samples
+from forward.render import ground_samples
 
 
 def ring_stand(rng, n, inner, outer):
@@ -32,7 +32,7 @@ def test_trees_beyond_the_footprint_reach_no_crossing(gedi, rng):
 def test_empty_scene_is_the_ground_return_alone(gedi):
     sim = fw.WaveformSimulator(gedi)
     wf = sim.simulate(fw.Stand.empty())
-    alone = 0.3 * _ground_samples(sim, np.zeros(1), np.ones(1), wf.heights)
+    alone = 0.3 * ground_samples(sim, np.zeros(1), np.ones(1), wf.heights)
     np.testing.assert_array_equal(wf.samples, alone)
 
 
