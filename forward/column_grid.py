@@ -49,12 +49,18 @@ class ColumnGrid:
         Truncation radius: columns with x² + y² > radius² are left out.
     spacing : float (m)
         Node spacing at the beam centre.
+    n_columns : int
+        Number of columns inside the disc.
     """
 
     nodes: np.ndarray = field(repr=False)
     weights: np.ndarray = field(repr=False)
     radius: float
     spacing: float
+    n_columns: int = field(init=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "n_columns", int(_columns_within(self.nodes, self.radius).sum()))
 
     @classmethod
     def build(cls, sigma, spacing, tolerance, stretch=COLUMN_STRETCH) -> "ColumnGrid":
@@ -67,11 +73,6 @@ class ColumnGrid:
         nodes, widths = _axis_nodes(radius, spacing, None if stretch is None else stretch * sigma)
         weights = np.exp(-0.5 * (nodes / sigma) ** 2) * widths
         return cls(nodes, weights / np.sqrt(_disc_total(nodes, weights, radius)), radius, spacing)
-
-    @property
-    def n_columns(self) -> int:
-        """Number of columns inside the disc."""
-        return int(_columns_within(self.nodes, self.radius).sum())
 
 
 def _axis_nodes(radius, spacing, width):
@@ -149,12 +150,10 @@ class CrownSet:
         return self.base + self.length
 
 
-def bin_columns(grid: ColumnGrid, crowns: CrownSet) -> int:
-    """Columns per side of a bin of the crown lists: about one median crown radius,
-    from 2 to 64 columns."""
-    if crowns.size == 0:
-        return 64
-    return int(np.clip(np.round(np.median(crowns.radius) / grid.spacing), 2, 64))
+def bin_columns(grid: ColumnGrid, crown_radius) -> int:
+    """Columns per side of a bin of the crown lists: about one typical crown radius
+    ``crown_radius`` (m), from 2 to 64 columns."""
+    return int(np.clip(np.round(crown_radius / grid.spacing), 2, 64))
 
 
 def crown_node_ranges(grid: ColumnGrid, crowns: CrownSet):

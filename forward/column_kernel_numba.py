@@ -12,8 +12,8 @@ the two nearest layer edges, so that a running sum of them from the top gives ea
 layer's optical depth Δτ exactly (:mod:`forward.gap`). Walking down the column, the gap
 P falls by the factor exp(−Δτ) in each layer and the layer returns ω·P·(1 − exp(−Δτ)),
 with 1 − exp(−Δτ) taken to full relative precision for thin layers; one exponential is
-taken per change of Δτ, not per layer. :data:`AVAILABLE` is False when numba cannot be
-imported.
+taken per run of layers at one Δτ, not per layer. :data:`AVAILABLE` is False when numba
+cannot be imported.
 """
 
 import importlib.util
@@ -102,12 +102,13 @@ def _add_kink(array, position, value):
     return node
 
 
+#: A column with more crown edges than this is walked layer by layer instead of run by
+#: run: sorting many edges costs more than the scan.
+_MOST_SORTED = 8
+
+
 def _sort_marks(values, count):
-    """Sort ``values[:count]`` in place: by insertion for the few crown edges of most
-    columns, by quicksort for many."""
-    if count > 32:
-        values[:count] = np.sort(values[:count])
-        return
+    """Sort ``values[:count]`` in place by insertion (a few crown edges)."""
     for i in range(1, count):
         value = values[i]
         j = i - 1
@@ -130,10 +131,29 @@ def _run(returns, first, stop, p, depth_rate, h):
 
 
 def _walk(returns, kinks, marks, count, p, h):
-    """Walk one column down through its crowns: ``marks[:count]`` are the upper edges
-    of its kinks (each kink sits on that edge and the next); the kinks are consumed
-    (set to zero). Between marked edges the optical depth per layer is constant, so each
-    run of layers costs one exponential. Returns ω·P at the column's lowest crown."""
+    """Walk one column down through its crowns, from ω·P = ``p`` at its top; returns
+    ω·P below its lowest crown.
+
+    ``marks[:count]`` are the upper edges of its kinks (each kink sits on that edge and
+    the next); the kinks are consumed (set to zero). Between marked edges the optical
+    depth per layer is constant: with few marks they are sorted and each run of layers
+    costs one exponential; with many, the column is scanned layer by layer, with one
+    exponential per change of depth.
+    """
+    if count > _MOST_SORTED:
+        first, last = marks[0], marks[0]
+        for k in range(1, count):
+            first, last = min(first, marks[k]), max(last, marks[k])
+        rate, q, loss = 0.0, 1.0, 0.0
+        for t in range(first, last + 2):
+            kink = kinks[t]
+            if kink != 0.0:
+                kinks[t] = 0.0
+                rate += kink
+                q, loss = _transmission(h * rate) if rate > 0.0 else (1.0, 0.0)
+            returns[t] += p * loss
+            p *= q
+        return p
     _sort_marks(marks, count)
     rate, i = 0.0, 0
     while i < count:

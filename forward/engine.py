@@ -262,7 +262,8 @@ class ColumnFootprint:
         self.bottom = float(self.crowns.base.min(initial=0.0))
 
     def profiles(self, heights):
-        """(profiles, layers, first layer, ground nodes, ground weights, settings)."""
+        """Profiles on the fine layers of ``heights``: (profiles, (layers, first layer),
+        ground heights (m), their shares of P̄ at the ground, scheme settings)."""
         sim, crowns, ground, understory = self.sim, self.crowns, self.ground, self.understory
         h = sim.layer_height
         typical = float(np.median(crowns.radius)) if crowns.size else sim.footprint_radius
@@ -280,7 +281,7 @@ class ColumnFootprint:
             k0 = int(np.floor(-reach / h)) - 1
             ground_nodes = (k0, int(np.ceil(reach / h)) - k0 + 2)
         sums = sim.backend.footprint_profiles(
-            grid, crowns, layers, ground.gradient, ground_nodes, bin_columns(grid, crowns)
+            grid, crowns, layers, ground.gradient, ground_nodes, bin_columns(grid, typical)
         )
         profiles = ColumnProfiles(
             gap_edges=gap_from_returns(sums.layer_return),
@@ -310,6 +311,6 @@ class ColumnFootprint:
             "tolerance": sim.accuracy.tolerance,
             "column_spacing_m": grid.spacing,
             "columns": grid.n_columns,
-            "backend": sim.backend.__name__.rsplit(".", 1)[-1],
+            "backend": "numba" if sim.backend is column_kernel_numba else "numpy",
         }
         return profiles, (layers, first), nodes, weights, settings

@@ -185,7 +185,8 @@ class CrownFootprint:
         self.bottom = float(self.crossings[1].min(initial=0.0))
 
     def profiles(self, heights):
-        """(profiles, (layers, first layer), ground nodes, ground weights, settings)."""
+        """Profiles on the fine layers of ``heights``: (profiles, (layers, first layer),
+        ground heights (m), their shares of P̄ at the ground, scheme settings)."""
         sim, ground, understory = self.sim, self.ground, self.understory
         found, z_low, z_high, extinction, favd = self.crossings
         span_low = min(z_low.min(initial=np.inf), 0.0 if understory else np.inf)

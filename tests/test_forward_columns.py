@@ -51,8 +51,8 @@ def test_compiled_kernel_equals_numpy_reference(scene, rng):
         for backend in ("numba", "numpy")
     ]
     compiled, reference = runs
-    assert compiled.settings["backend"] == "column_kernel_numba"
-    assert reference.settings["backend"] == "column_kernel"
+    assert compiled.settings["backend"] == "numba"
+    assert reference.settings["backend"] == "numpy"
     scale = reference.samples.max()
     np.testing.assert_allclose(compiled.samples, reference.samples, rtol=0, atol=1e-13 * scale)
     for name in ("gap", "crown_volume", "foliage_area"):
@@ -162,3 +162,47 @@ def test_node_counts_select_the_per_crown_quadrature(gedi):
 def test_bad_accuracy_names_the_problem(build, message):
     with pytest.raises(ValueError, match=message):
         build()
+
+
+@pytest.mark.parametrize("preset", ["slicer", "lvis", "gedi"])
+def test_default_layers_keep_the_quarter_sigma_rule(preset):
+    """At the default tolerance the fine layers are those of earlier versions (≤ σz/4);
+    a tighter tolerance thins them as its square root."""
+    inst = fw.instrument_preset(preset)
+    sigma = inst.pulse.sigma_m
+    default = fw.WaveformSimulator(inst)
+    assert default.oversampling == max(1, int(np.ceil(4 * inst.bin_height / sigma - 1e-9)))
+    tight = fw.WaveformSimulator(inst, 1e-5)
+    assert tight.layer_height <= sigma * np.sqrt(25 * 1e-5) < default.layer_height
+
+
+def test_column_spacing_follows_the_tolerance():
+    accuracy = fw.AccuracySettings()
+    base = accuracy.column_spacing_for(5.5, 2.0)
+    tighter = fw.AccuracySettings(tolerance=accuracy.tolerance / 8).column_spacing_for(5.5, 2.0)
+    assert tighter == pytest.approx(base / 4)  # s ∝ tolerance^(2/3)
+    assert accuracy.column_spacing_for(5.5 * 8, 2.0) == pytest.approx(4 * base)  # ∝ σf^(2/3)
+    assert fw.AccuracySettings(column_spacing=0.4).column_spacing_for(5.5, 2.0) == 0.4
+
+
+def test_numpy_kernel_memory_does_not_grow_with_crown_size():
+    """Tiles bound the numpy reference's work arrays: 300 slabs 8–60 m wide over a 2 m
+    beam (which made the per-crown quadrature allocate 1.4 GB) stay within tens of MB."""
+    import tracemalloc
+
+    rng = np.random.default_rng(30)
+    n = 300
+    stand = fw.Stand.from_arrays(
+        x=rng.uniform(-30, 30, n), y=rng.uniform(-30, 30, n), height=rng.uniform(5, 30, n),
+        crown_length=rng.uniform(0.5, 3.0, n), crown_radius=rng.uniform(4, 30, n),
+        favd=0.2, shape="cylinder",
+    )  # fmt: skip
+    sim = fw.WaveformSimulator(
+        fw.instrument_preset("gedi", footprint_sigma_m=2.0), fw.AccuracySettings(backend="numpy")
+    )
+    prepared = sim.prepare(stand)
+    tracemalloc.start()
+    sim.simulate(prepared)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 100e6

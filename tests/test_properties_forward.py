@@ -200,7 +200,13 @@ def test_blocked_column_profiles_equal_one_block(monkeypatch, rng, slope):
     from tests.conftest import random_stand
 
     stand = random_stand(rng, n=40, half_width=8.0)
-    sim = fw.WaveformSimulator(fw.instrument_preset("gedi", footprint_sigma_m=3.0))
+    for accuracy in (fw.AccuracySettings(backend="numpy"), fw.AccuracySettings(4, 8)):
+        _blocks_change_nothing(monkeypatch, stand, accuracy, slope)
+
+
+def _blocks_change_nothing(monkeypatch, stand, accuracy, slope):
+    monkeypatch.setattr(gap_module, "BLOCK_ELEMENTS", 1_000_000)
+    sim = fw.WaveformSimulator(fw.instrument_preset("gedi", footprint_sigma_m=3.0), accuracy)
     ground = fw.Ground(0.3, slope_deg=slope)
     one = sim.simulate(stand, ground=ground)
     monkeypatch.setattr(gap_module, "BLOCK_ELEMENTS", 500)  # many small blocks
