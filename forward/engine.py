@@ -22,7 +22,7 @@ from . import column_kernel, column_kernel_numba
 from .accuracy import AccuracySettings, as_accuracy
 from .column_grid import ColumnGrid, CrownSet, bin_columns
 from .footprint import CrownFootprint, DiscQuadrature, truncation_radius
-from .gap import ColumnProfiles, LayerGrid, add_uniform_layer, gap_from_returns
+from .gap import ColumnProfiles, LayerGrid, gap_from_returns, with_understory
 from .pulse import layer_kernel
 from .render import render_waveform
 from .scene import Ground, UniformUnderstory
@@ -291,14 +291,7 @@ class ColumnFootprint:
             column_depth=None,
             crowned_columns=np.zeros(0, np.intp),
         )
-        if understory is not None:
-            profiles = add_uniform_layer(
-                profiles,
-                layers,
-                sim.instrument.extinction_per_favd * understory.favd,
-                understory.favd,
-                understory.height,
-            )
+        profiles = with_understory(profiles, layers, understory, sim.instrument.extinction_per_favd)
         at_ground = float(profiles.gap_edges[0])  # all foliage lies above the ground
         if ground_nodes is None:
             nodes, weights = np.zeros(1), np.array([at_ground])

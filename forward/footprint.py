@@ -29,7 +29,7 @@ from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
 from .crowns import crown_interval
-from .gap import add_uniform_layer, column_profiles
+from .gap import column_profiles, with_understory
 
 
 def truncation_radius(sigma, tolerance):
@@ -204,14 +204,7 @@ class CrownFootprint:
             found.weights,
             keep_depth=not ground.is_flat,
         )
-        if understory is not None:
-            profiles = add_uniform_layer(
-                profiles,
-                layers,
-                sim.instrument.extinction_per_favd * understory.favd,
-                understory.favd,
-                understory.height,
-            )
+        profiles = with_understory(profiles, layers, understory, sim.instrument.extinction_per_favd)
         nodes, weights = _ground_deposit(sim, found, profiles, ground)
         settings = {
             "scheme": "crowns",

@@ -212,6 +212,19 @@ def _block_losses(row, z_low, z_high, extinction, grid, n_rows):
     return -np.expm1(-dtau)  # exact for optically thin layers
 
 
+def with_understory(profiles, grid, understory, extinction_per_favd):
+    """The profiles with a uniform understory layer folded in (unchanged for None)."""
+    if understory is None:
+        return profiles
+    return add_uniform_layer(
+        profiles,
+        grid,
+        extinction_per_favd * understory.favd,
+        understory.favd,
+        understory.height,
+    )
+
+
 def add_uniform_layer(profiles, grid, extinction_per_m, foliage_per_m, top):
     """Fold a horizontally uniform foliage layer from 0 to ``top`` (m) into the profiles.
 

@@ -284,35 +284,39 @@ def plot(results):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(results), figsize=(3.6 * len(results), 3.8), squeeze=False)
+    n = len(results)
+    fig, axes = plt.subplots(2, n, figsize=(3.6 * n, 7.0), squeeze=False)
     style = {"old": ("C0", "o-"), "new": ("C3", "s-"), "brute force": ("k", "*")}
-    for ax, (kind, result) in zip(axes[0], results.items()):
-        for engine, (colour, marker) in style.items():
-            rows = [r for r in result["rows"] if r["engine"] == engine]
-            ax.plot(
-                [r["ms_per_footprint"] for r in rows],
-                [100 * r["relative_l1_mean"] for r in rows],
-                marker,
-                color=colour,
-                ms=9 if engine == "brute force" else 4,
-                label={"old": "per-crown quadrature", "new": "columns (tolerance)"}.get(
-                    engine, "brute force"
-                ),
-            )
-            for r in rows:
-                if r["is_default"]:
-                    ax.plot(r["ms_per_footprint"], 100 * r["relative_l1_mean"], "o", mfc="none",
-                            mec=colour, ms=12)  # fmt: skip
-        ax.axhline(100 * TARGET["relative_l1"], ls=":", c="k")
-        ax.axvline(TARGET["ms_per_footprint"], ls=":", c="k")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+    labels = {"old": "per-crown quadrature", "new": "columns (tolerance)"}
+    for column, (kind, result) in enumerate(results.items()):
+        for row, key in enumerate(("relative_l1_mean", "ground_error_mean")):
+            ax = axes[row][column]
+            for engine, (colour, marker) in style.items():
+                rows = [r for r in result["rows"] if r["engine"] == engine]
+                ax.plot(
+                    [r["ms_per_footprint"] for r in rows],
+                    [100 * r[key] for r in rows],
+                    marker,
+                    color=colour,
+                    ms=9 if engine == "brute force" else 4,
+                    label=labels.get(engine, "brute force"),
+                )
+                for r in rows:
+                    if r["is_default"]:
+                        ax.plot(r["ms_per_footprint"], 100 * r[key], "o", mfc="none",
+                                mec=colour, ms=12)  # fmt: skip
+            ax.axhline(100 * TARGET["relative_l1" if row == 0 else "ground"], ls=":", c="k")
+            ax.axvline(TARGET["ms_per_footprint"], ls=":", c="k")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
         low, high = result["trees_in_footprint"]
-        ax.set_title(f"{kind} ({low}–{high} trees)", fontsize=9)
-        ax.set_xlabel("CPU ms per footprint (one core)")
+        axes[0][column].set_title(f"{kind} ({low}–{high} trees)", fontsize=9)
+        axes[1][column].set_xlabel("CPU ms per footprint (one core)")
     axes[0][0].set_ylabel("relative L1 error (%)")
+    axes[1][0].set_ylabel("ground energy error (%)")
     axes[0][0].legend(fontsize=7)
-    fig.suptitle("Explicit engine: run time against error (circled: defaults)", fontsize=10)
+    fig.suptitle("Explicit engine: run time against error, mean over footprints (circled: "
+                 "defaults)", fontsize=10)  # fmt: skip
     fig.tight_layout()
     fig.savefig(OUT / "runtime_vs_error.png", dpi=120)
     plt.close(fig)

@@ -26,6 +26,15 @@ def overlapping_stand(rng, n, half_width, radius=(1.5, 2.5), favd=1.5, shapes=fw
     )
 
 
+def slab_stand(rng, n, half_width, radius, favd):
+    """``n`` slab-like cylinders 0.5–3 m deep and ``radius`` (low, high) m wide."""
+    return fw.Stand.from_arrays(
+        x=rng.uniform(-half_width, half_width, n), y=rng.uniform(-half_width, half_width, n),
+        height=rng.uniform(5, 30, n), crown_length=rng.uniform(0.5, 3.0, n),
+        crown_radius=rng.uniform(*radius, n), favd=favd, shape="cylinder",
+    )  # fmt: skip
+
+
 def relative_l1(samples, reference):
     return np.abs(samples - reference).sum() / reference.sum()
 
@@ -62,15 +71,9 @@ def test_compiled_kernel_equals_numpy_reference(scene, rng):
 
 @needs_numba
 def test_compiled_kernel_handles_many_wide_crowns():
-    """Hundreds of slab-like crowns over every column (sorted by quicksort, not by
-    insertion) give the numpy reference's numbers."""
-    rng = np.random.default_rng(5)
-    n = 120
-    stand = fw.Stand.from_arrays(
-        x=rng.uniform(-10, 10, n), y=rng.uniform(-10, 10, n), height=rng.uniform(5, 30, n),
-        crown_length=rng.uniform(0.5, 3, n), crown_radius=rng.uniform(15, 30, n),
-        favd=0.05, shape="cylinder",
-    )  # fmt: skip
+    """A hundred and twenty slab-like crowns over every column (walked layer by layer,
+    not run by run) give the numpy reference's numbers."""
+    stand = slab_stand(np.random.default_rng(5), 120, 10.0, (15.0, 30.0), 0.05)
     inst = fw.instrument_preset("gedi", footprint_sigma_m=2.0)
     compiled, reference = (
         fw.WaveformSimulator(inst, fw.AccuracySettings(backend=b)).simulate(stand)
@@ -190,13 +193,7 @@ def test_numpy_kernel_memory_does_not_grow_with_crown_size():
     beam (which made the per-crown quadrature allocate 1.4 GB) stay within tens of MB."""
     import tracemalloc
 
-    rng = np.random.default_rng(30)
-    n = 300
-    stand = fw.Stand.from_arrays(
-        x=rng.uniform(-30, 30, n), y=rng.uniform(-30, 30, n), height=rng.uniform(5, 30, n),
-        crown_length=rng.uniform(0.5, 3.0, n), crown_radius=rng.uniform(4, 30, n),
-        favd=0.2, shape="cylinder",
-    )  # fmt: skip
+    stand = slab_stand(np.random.default_rng(30), 300, 30.0, (4.0, 30.0), 0.2)
     sim = fw.WaveformSimulator(
         fw.instrument_preset("gedi", footprint_sigma_m=2.0), fw.AccuracySettings(backend="numpy")
     )
