@@ -7,9 +7,10 @@ resolution:
 - Columns. The error of a grid of columns comes from the crown edges between them and
   falls as the spacing s to the power 1.5 for one crown; over the N ≈ (σf/R)² crowns
   of a footprint of σf under crowns of radius R it averages as 1/√N. So
-  ε ≈ (s/R)^1.5·R/σf, and :meth:`AccuracySettings.column_spacing_for` solves it for s,
-  s = C·ε^(2/3)·σf^(2/3)·R^(1/3), with C measured on the stands of
-  ``studies/forward_runtime_vs_error.py``.
+  ε ≈ (s/R)^1.5/√N, and :meth:`AccuracySettings.column_spacing_for` solves it for s,
+  s = C·ε^(2/3)·R·N^(1/3) = C·ε^(2/3)·σf^(2/3)·R^(1/3), with C measured on the stands of
+  ``studies/forward_runtime_vs_error.py``. Where fewer crowns share the footprint's
+  weight, N is their effective number (Σω)²/Σω² and the columns are closer.
 - Truncation. The footprint weight left out beyond the truncation radius is a tenth of
   the tolerance (conventions, "Footprint").
 - Layers. A fine layer spreads its return evenly over its thickness h; after the pulse
@@ -119,13 +120,15 @@ class AccuracySettings:
             return CROWN_SCHEME_TRUNCATION
         return min(0.1 * self.tolerance, 1e-3)
 
-    def column_spacing_for(self, footprint_sigma, crown_radius) -> float:
+    def column_spacing_for(self, footprint_sigma, crown_radius, crowns=np.inf) -> float:
         """Column spacing (m) at the beam centre for a footprint of σf (m) under crowns
-        of typical radius ``crown_radius`` (m)."""
+        of typical radius ``crown_radius`` (m), of which about ``crowns`` share the
+        footprint's weight (fewer than (σf/R)² average their edge errors less)."""
         if self.column_spacing is not None:
             return float(self.column_spacing)
-        scale = footprint_sigma ** (2.0 / 3.0) * max(crown_radius, 1e-6) ** (1.0 / 3.0)
-        return SPACING_CONSTANT * self.tolerance ** (2.0 / 3.0) * scale
+        radius = max(crown_radius, 1e-6)
+        averaged = min(footprint_sigma / radius, np.sqrt(max(crowns, 1.0)))  # √N
+        return SPACING_CONSTANT * self.tolerance ** (2.0 / 3.0) * radius * averaged ** (2 / 3)
 
     def oversampling_for(self, bin_height, pulse_sigma) -> int:
         """Fine layers per digitiser bin of ``bin_height`` (m) for a pulse of σz =

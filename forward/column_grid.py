@@ -149,6 +149,13 @@ class CrownSet:
         """Crown top heights (m)."""
         return self.base + self.length
 
+    def effective_count(self, sigma) -> float:
+        """Effective number (Σω)²/Σω² of crowns sharing a footprint of σf = ``sigma`` (m),
+        ω being a crown's area times the footprint's weight at its stem."""
+        share = self.radius**2 * np.exp(-0.5 * (self.x**2 + self.y**2) / sigma**2)
+        total = float(np.sum(share * share))
+        return float(np.sum(share)) ** 2 / total if total > 0 else 0.0
+
 
 def bin_columns(grid: ColumnGrid, crown_radius) -> int:
     """Columns per side of a bin of the crown lists: about one typical crown radius

@@ -133,10 +133,11 @@ class WaveformSimulator:
         last = np.ceil((max(top, 0.0) + high) / dz) + 1
         return np.arange(first, last + 1) * dz
 
-    def column_grid(self, crown_radius) -> ColumnGrid:
-        """The footprint's columns under crowns of typical radius ``crown_radius`` (m)."""
+    def column_grid(self, crown_radius, crowns=np.inf) -> ColumnGrid:
+        """The footprint's columns under about ``crowns`` crowns of typical radius
+        ``crown_radius`` (m) (:meth:`AccuracySettings.column_spacing_for`)."""
         sigma = self.instrument.footprint_sigma_m
-        spacing = self.accuracy.column_spacing_for(sigma, crown_radius)
+        spacing = self.accuracy.column_spacing_for(sigma, crown_radius, crowns)
         if self.accuracy.column_spacing is None:  # round to a ladder, so grids are shared
             steps = SPACING_STEPS_PER_OCTAVE
             spacing = 2.0 ** (np.floor(steps * np.log2(spacing)) / steps)
@@ -267,7 +268,7 @@ class ColumnFootprint:
         sim, crowns, ground, understory = self.sim, self.crowns, self.ground, self.understory
         h = sim.layer_height
         typical = float(np.median(crowns.radius)) if crowns.size else sim.footprint_radius
-        grid = sim.column_grid(typical)
+        grid = sim.column_grid(typical, crowns.effective_count(sim.instrument.footprint_sigma_m))
         span_low = min(crowns.base.min(initial=np.inf), 0.0 if understory else np.inf)
         span_high = max(
             crowns.top.max(initial=-np.inf), understory.height if understory else -np.inf

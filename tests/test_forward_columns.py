@@ -203,3 +203,18 @@ def test_numpy_kernel_memory_does_not_grow_with_crown_size():
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     assert peak < 100e6
+
+
+def test_footprints_under_few_crowns_get_closer_columns(gedi):
+    """Edge errors average over the crowns sharing the footprint: with fewer than
+    (σf/R)² of them the columns are closer (and few crowned columns cost little)."""
+    one = fw.Stand.from_arrays(x=[1.0], y=[0.0], height=[15.0], crown_length=[6.0],
+                               crown_radius=[2.0], favd=0.5)  # fmt: skip
+    sim = fw.WaveformSimulator(gedi)
+    crowns = sim.prepare(one).crowns_near(0.0, 0.0, sim.footprint_radius, fw.Ground())
+    assert crowns.effective_count(gedi.footprint_sigma_m) == pytest.approx(1.0)
+    many = overlapping_stand(np.random.default_rng(3), 600, 25.0, radius=(2.0, 2.0))
+    assert (
+        sim.simulate(one).settings["column_spacing_m"]
+        < 0.8 * sim.simulate(many).settings["column_spacing_m"]
+    )
