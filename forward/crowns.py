@@ -37,25 +37,23 @@ class CrownShape:
     volume_fraction: float
 
 
-def _half_chord(rho):
-    return np.sqrt(np.clip(1.0 - rho * rho, 0.0, 1.0))
-
-
+# The extents are written with arithmetic and ufuncs only, so that they accept scalars as
+# well as arrays and compile unchanged under numba (forward.column_kernel_numba).
 def _cone_extent(rho):
-    return np.zeros_like(rho), 1.0 - rho
+    return 0.0 * rho, 1.0 - rho
 
 
 def _ellipsoid_extent(rho):
-    half = 0.5 * _half_chord(rho)
+    half = 0.5 * np.sqrt(np.maximum(1.0 - rho * rho, 0.0))
     return 0.5 - half, 0.5 + half
 
 
 def _hemi_ellipsoid_extent(rho):
-    return np.zeros_like(rho), _half_chord(rho)
+    return 0.0 * rho, np.sqrt(np.maximum(1.0 - rho * rho, 0.0))
 
 
 def _cylinder_extent(rho):
-    return np.zeros_like(rho), np.ones_like(rho)
+    return 0.0 * rho, 0.0 * rho + 1.0
 
 
 def _inside(s):

@@ -1,71 +1,48 @@
 """The explicit 3-D waveform engine.
 
 :class:`WaveformSimulator` precomputes what depends only on the instrument and the
-accuracy settings (the crown-disc quadrature, the truncation radius, the pulse kernel); a
+accuracy settings (the truncation radius, the fine layers, the pulse kernel); a
 :class:`PreparedStand` holds per-stand work (stem search tree, crown extinction). Each
-footprint then costs a crown/column intersection, the exact gap profile over the layers
-that hold crowns, and one short convolution.
+footprint then costs the crowns that reach it, the footprint sums of the gap profiles of
+its columns, exact at the fine-layer edges (:mod:`forward.column_kernel`, compiled in
+:mod:`forward.column_kernel_numba`), and one short convolution with the pulse.
+
+The columns lie on a grid over the truncated footprint (:mod:`forward.column_grid`) whose
+spacing follows from the accuracy settings' tolerance (:mod:`forward.accuracy`). The
+per-crown disc quadrature of earlier versions (:mod:`forward.footprint`) is kept as the
+scheme ``"crowns"``.
 """
 
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.special import ndtr
 
-from .crowns import crown_interval
-from .footprint import CrownCrossings, DiscQuadrature, crown_crossings, truncation_radius
-from .gap import LayerGrid, add_uniform_layer, column_profiles
+from . import column_kernel, column_kernel_numba
+from .accuracy import AccuracySettings, as_accuracy
+from .column_grid import ColumnGrid, CrownSet, bin_columns
+from .footprint import CrownFootprint, DiscQuadrature, truncation_radius
+from .gap import ColumnProfiles, LayerGrid, gap_from_returns, with_understory
 from .pulse import layer_kernel
+from .render import render_waveform
 from .scene import Ground, UniformUnderstory
 from .stand import Stand
 from .waveform import Waveform
+
+__all__ = [
+    "DEFAULT_CANOPY_REFLECTANCE",
+    "AccuracySettings",
+    "PreparedStand",
+    "WaveformSimulator",
+]
 
 #: Default canopy backscatter reflectance ρv; with the default ρg = 0.3 the ratio is the
 #: GEDI L2B value ρv/ρg = 1.5.
 DEFAULT_CANOPY_REFLECTANCE = 0.45
 
-
-@dataclass(frozen=True)
-class AccuracySettings:
-    """Numerical settings of the explicit engine.
-
-    Parameters
-    ----------
-    radial_nodes, angular_nodes : int
-        Quadrature columns per crown disc: Gauss–Legendre rings in ρ² × angles.
-    truncation_tolerance : float
-        Footprint weight neglected beyond the truncation radius.
-    vertical_oversampling : int or None
-        Fine layers per digitiser bin; ``None`` picks the smallest count that makes the
-        layer no thicker than a quarter of the pulse's σz.
-    pulse_tolerance : float
-        Pulse area neglected in each tail.
-    """
-
-    radial_nodes: int = 4
-    angular_nodes: int = 8
-    truncation_tolerance: float = 1e-3
-    vertical_oversampling: int | None = None
-    pulse_tolerance: float = 1e-9
-
-    def __post_init__(self):
-        for name in ("radial_nodes", "angular_nodes"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"{name} must be an integer ≥ 1, got {value!r}")
-        m = self.vertical_oversampling
-        if m is not None and (not isinstance(m, (int, np.integer)) or m < 1):
-            raise ValueError(f"vertical_oversampling must be None or an integer ≥ 1, got {m!r}")
-        if not 0.0 < self.truncation_tolerance < 1.0:
-            raise ValueError(
-                f"truncation_tolerance must lie in (0, 1), got {self.truncation_tolerance}"
-            )
-        if not 0.0 < self.pulse_tolerance < 0.5:
-            raise ValueError(
-                f"pulse_tolerance (pulse area left out per tail) must lie in (0, 0.5), "
-                f"got {self.pulse_tolerance}"
-            )
+#: Column spacings are rounded to this many steps per factor of two, so that footprints
+#: under similar crowns share one grid.
+SPACING_STEPS_PER_OCTAVE = 8
 
 
 @dataclass(frozen=True)
@@ -92,6 +69,25 @@ class PreparedStand:
             ),
         )
 
+    def crowns_near(self, cx, cy, radius, ground: Ground) -> CrownSet:
+        """The crowns whose discs reach within ``radius`` (m) of (cx, cy), with their
+        bases raised by the ground's height at their stems."""
+        stand = self.stand
+        near = np.asarray(self.tree.query_ball_point((cx, cy), radius + self.max_radius), np.intp)
+        dx, dy = stand.x[near] - cx, stand.y[near] - cy
+        reach = np.hypot(dx, dy) < radius + stand.crown_radius[near]
+        near, dx, dy = near[reach], dx[reach], dy[reach]
+        return CrownSet(
+            x=dx,
+            y=dy,
+            radius=stand.crown_radius[near],
+            shape=stand.shape[near].astype(np.int64),
+            base=stand.crown_base[near] + ground.elevation(dx, dy),
+            length=stand.crown_length[near],
+            extinction=self.extinction[near],
+            favd=stand.favd[near],
+        )
+
 
 class WaveformSimulator:
     """Simulates waveforms of explicit stands for one instrument.
@@ -99,30 +95,30 @@ class WaveformSimulator:
     Parameters
     ----------
     instrument : Instrument
-    accuracy : AccuracySettings
+    accuracy : AccuracySettings, float or str, optional
+        Accuracy settings, or a tolerance on the relative L1 error of the waveforms
+        (e.g. ``1e-3``); the defaults aim at :data:`forward.accuracy.DEFAULT_TOLERANCE`.
     """
 
-    def __init__(self, instrument, accuracy: AccuracySettings | None = None):
-        accuracy = AccuracySettings() if accuracy is None else accuracy
+    def __init__(self, instrument, accuracy: AccuracySettings | float | str | None = None):
+        accuracy = as_accuracy(accuracy)
         self.instrument = instrument
         self.accuracy = accuracy
-        self.quadrature = DiscQuadrature(accuracy.radial_nodes, accuracy.angular_nodes)
+        self.scheme = accuracy.scheme
         self.footprint_radius = truncation_radius(
-            instrument.footprint_sigma_m, accuracy.truncation_tolerance
+            instrument.footprint_sigma_m, accuracy.footprint_tolerance
         )
         dz = instrument.bin_height
-        m = accuracy.vertical_oversampling
-        if m is None:  # layers no thicker than σz/4; the ±1σ support spans 2σz
-            low, high = instrument.pulse.support(0.1587)
-            m = max(1, int(np.ceil(8.0 * dz / max(high - low, 1e-12))))
-        if m < 1:
-            raise ValueError(f"vertical_oversampling must be ≥ 1, got {m}")
-        self.oversampling = int(m)
+        low, high = instrument.pulse.support(0.1587)  # ±1σ of a Gaussian pulse
+        self.oversampling = accuracy.oversampling_for(dz, max(0.5 * (high - low), 1e-12))
         self.layer_height = dz / self.oversampling
         self.kernel_offset, self.kernel = layer_kernel(
             instrument.pulse, dz, self.oversampling, accuracy.pulse_tolerance
         )
         self.pulse_support = instrument.pulse.support(accuracy.pulse_tolerance)
+        self.quadrature = DiscQuadrature(*accuracy.crown_nodes) if self.scheme == "crowns" else None
+        self.backend = _backend(accuracy.backend)
+        self._grids: dict[float, ColumnGrid] = {}
 
     # public API ----------------------------------------------------------------------
     def prepare(self, stand: Stand) -> PreparedStand:
@@ -136,6 +132,20 @@ class WaveformSimulator:
         first = np.floor((min(bottom, 0.0) + low) / dz) - 1
         last = np.ceil((max(top, 0.0) + high) / dz) + 1
         return np.arange(first, last + 1) * dz
+
+    def column_grid(self, crown_radius, crowns=np.inf) -> ColumnGrid:
+        """The footprint's columns under about ``crowns`` crowns of typical radius
+        ``crown_radius`` (m) (:meth:`AccuracySettings.column_spacing_for`)."""
+        sigma = self.instrument.footprint_sigma_m
+        spacing = self.accuracy.column_spacing_for(sigma, crown_radius, crowns)
+        if self.accuracy.column_spacing is None:  # round to a ladder, so grids are shared
+            steps = SPACING_STEPS_PER_OCTAVE
+            spacing = 2.0 ** (np.floor(steps * np.log2(spacing)) / steps)
+        if spacing not in self._grids:
+            self._grids[spacing] = ColumnGrid.build(
+                sigma, spacing, self.accuracy.footprint_tolerance
+            )
+        return self._grids[spacing]
 
     def simulate(
         self,
@@ -175,15 +185,29 @@ class WaveformSimulator:
         cx, cy = (float(c) for c in center)
         if not (np.isfinite(cx) and np.isfinite(cy)):
             raise ValueError(f"footprint centre must be finite, got {center}")
-        crossings = self._crossings(prepared, cx, cy, ground)
-        top = max(crossings[2].max(initial=0.0), understory.height if understory else 0.0)
+        if self.scheme == "crowns":
+            footprint = CrownFootprint(self, prepared, cx, cy, ground, understory)
+        else:
+            footprint = ColumnFootprint(self, prepared, cx, cy, ground, understory)
         if heights is None:
             ground_reach = self.footprint_radius * np.tan(np.radians(ground.slope_deg))
-            low = min(crossings[1].min(initial=0.0), -ground_reach)
-            heights = self.default_heights(max(top, ground_reach), low)
+            top = max(footprint.top, understory.height if understory else 0.0, ground_reach)
+            heights = self.default_heights(top, min(footprint.bottom, -ground_reach))
         else:
             heights = self._check_heights(heights)
-        return self._render(crossings, heights, ground, canopy_reflectance, understory, (cx, cy))
+        profiles, grid, nodes, weights, settings = footprint.profiles(heights)
+        return render_waveform(
+            self,
+            heights,
+            profiles,
+            grid,
+            (nodes, weights),
+            ground,
+            canopy_reflectance,
+            understory,
+            (cx, cy),
+            settings,
+        )
 
     def simulate_many(self, stand, centers, **kwargs) -> list[Waveform]:
         """Waveforms of several footprints over one stand (per-stand work done once)."""
@@ -210,170 +234,77 @@ class WaveformSimulator:
                 )
         return heights
 
-    def _crossings(self, prepared, cx, cy, ground):
-        """Quadrature columns of all crowns that reach the truncated footprint."""
-        stand = prepared.stand
-        reach = self.footprint_radius + prepared.max_radius
-        near = np.asarray(prepared.tree.query_ball_point((cx, cy), reach), np.intp)
-        if near.size == 0:  # bare ground: nothing to intersect
-            empty, none = np.zeros(0), np.zeros(0, np.intp)
-            found = CrownCrossings(np.zeros((0, 2)), empty, none, none, empty)
-            return found, empty, empty, empty, empty
-        dx, dy = stand.x[near] - cx, stand.y[near] - cy
-        found = crown_crossings(
-            self.quadrature,
-            dx,
-            dy,
-            stand.crown_radius[near],
-            self.instrument.footprint_sigma_m,
-            self.accuracy.truncation_tolerance,
-        )
-        index = near[found.tree]
-        base = stand.crown_base[index] + ground.elevation(dx[found.tree], dy[found.tree])
-        z_low, z_high = crown_interval(
-            stand.shape[index], found.rho, base, stand.crown_length[index]
-        )
-        if not ground.is_flat:  # foliage below the local ground surface does not exist
-            local = ground.elevation(found.points[found.column, 0], found.points[found.column, 1])
-            z_low, z_high = np.maximum(z_low, local), np.maximum(z_high, local)
-        return found, z_low, z_high, prepared.extinction[index], stand.favd[index]
+    def layer_grid(self, heights, span_low, span_high):
+        """Fine layers on the bins' grid spanning [span_low, span_high] (m), and the
+        global index of the first (layer i spans heights[0] − Δz/2 + [i, i + 1]·h)."""
+        dz, h = self.instrument.bin_height, self.layer_height
+        origin = heights[0] - dz / 2
+        first = int(np.floor((span_low - origin) / h))
+        last = int(np.ceil((span_high - origin) / h))
+        return LayerGrid(origin + first * h, h, last - first), first
 
-    def _render(self, crossings, heights, ground, rho_v, understory, center):
-        found, z_low, z_high, extinction, favd = crossings
-        dz, h, m = self.instrument.bin_height, self.layer_height, self.oversampling
-        origin = heights[0] - dz / 2  # global layer i spans origin + [i, i + 1]·h
-        span_low = min(z_low.min(initial=np.inf), 0.0 if understory else np.inf)
-        span_high = max(z_high.max(initial=-np.inf), understory.height if understory else -np.inf)
-        n = heights.size
-        canopy = np.zeros(n)
-        crown_volume = np.zeros(n)
-        foliage = np.zeros(n)
-        if span_high > span_low:
-            first = int(np.floor((span_low - origin) / h))
-            last = int(np.ceil((span_high - origin) / h))
-            grid = LayerGrid(origin + first * h, h, last - first)
-            profiles = column_profiles(
-                found.column,
-                z_low,
-                z_high,
-                extinction,
-                favd,
-                grid,
-                found.weights,
-                keep_depth=not ground.is_flat,
-            )
-            if understory is not None:
-                profiles = add_uniform_layer(
-                    profiles,
-                    grid,
-                    self.instrument.extinction_per_favd * understory.favd,
-                    understory.favd,
-                    understory.height,
-                )
-            canopy = rho_v * self._convolve_layers(profiles.layer_return, first, n)
-            crown_volume = _layers_to_bins(profiles.crown_volume, first, m, n)
-            foliage = _layers_to_bins(profiles.foliage_area, first, m, n)
-            edges, gap_edges = grid.edges, profiles.gap_edges
+
+def _backend(name):
+    """The column kernel module for a backend name: numba where asked for or available."""
+    if name == "numba" and not column_kernel_numba.AVAILABLE:
+        raise ImportError("AccuracySettings(backend='numba') needs numba installed")
+    if name != "numpy" and column_kernel_numba.AVAILABLE:
+        return column_kernel_numba
+    return column_kernel
+
+
+class ColumnFootprint:
+    """One footprint under the grid-of-columns scheme: its crowns, then its profiles."""
+
+    def __init__(self, sim, prepared, cx, cy, ground, understory):
+        self.sim, self.ground, self.understory = sim, ground, understory
+        self.crowns = prepared.crowns_near(cx, cy, sim.footprint_radius, ground)
+        self.top = float(self.crowns.top.max(initial=0.0))
+        self.bottom = float(self.crowns.base.min(initial=0.0))
+
+    def profiles(self, heights):
+        """Profiles on the fine layers of ``heights``: (profiles, (layers, first layer),
+        ground heights (m), their shares of P̄ at the ground, scheme settings)."""
+        sim, crowns, ground, understory = self.sim, self.crowns, self.ground, self.understory
+        h = sim.layer_height
+        typical = float(np.median(crowns.radius)) if crowns.size else sim.footprint_radius
+        grid = sim.column_grid(typical, crowns.effective_count(sim.instrument.footprint_sigma_m))
+        span_low = min(crowns.base.min(initial=np.inf), 0.0 if understory else np.inf)
+        span_high = max(
+            crowns.top.max(initial=-np.inf), understory.height if understory else -np.inf
+        )
+        if span_high <= span_low:  # nothing above the ground: a one-layer empty canopy
+            span_low, span_high = 0.0, h
+        layers, first = sim.layer_grid(heights, span_low, span_high)
+        ground_nodes = None
+        if not ground.is_flat:
+            reach = grid.radius * np.tan(np.radians(ground.slope_deg))
+            k0 = int(np.floor(-reach / h)) - 1
+            ground_nodes = (k0, int(np.ceil(reach / h)) - k0 + 2)
+        sums = sim.backend.footprint_profiles(
+            grid, crowns, layers, ground.gradient, ground_nodes, bin_columns(grid, typical)
+        )
+        profiles = ColumnProfiles(
+            gap_edges=gap_from_returns(sums.layer_return),
+            layer_return=sums.layer_return,
+            crown_volume=sums.crown_volume,
+            foliage_area=sums.foliage_area,
+            column_depth=None,
+            crowned_columns=np.zeros(0, np.intp),
+        )
+        profiles = with_understory(profiles, layers, understory, sim.instrument.extinction_per_favd)
+        at_ground = float(profiles.gap_edges[0])  # all foliage lies above the ground
+        if ground_nodes is None:
+            nodes, weights = np.zeros(1), np.array([at_ground])
         else:
-            profiles, grid = None, None
-            edges, gap_edges = np.array([0.0, 1.0]), np.ones(2)
-        ground_nodes, ground_weights = self._ground_deposit(found, profiles, ground)
-        ground_gap = float(gap_edges[0])  # P̄ at the ground: all foliage lies above it
-        ground_part = ground.reflectance * self._ground_samples(
-            ground_nodes, ground_weights, heights
-        )
-        gap = np.interp(heights, edges, gap_edges, left=gap_edges[0], right=1.0)
-        return Waveform(
-            heights=heights,
-            samples=canopy + ground_part,
-            canopy=canopy,
-            ground=ground_part,
-            gap=gap,
-            crown_volume=crown_volume,
-            foliage_area=foliage,
-            canopy_energy=rho_v * float(1.0 - gap_edges[0]) if span_high > span_low else 0.0,
-            ground_energy=ground.reflectance * ground_gap,
-            ground_gap=ground_gap,
-            center=center,
-            settings={
-                **self.instrument.describe(),
-                "radial_nodes": self.quadrature.radial_nodes,
-                "angular_nodes": self.quadrature.angular_nodes,
-                "truncation_tolerance": self.accuracy.truncation_tolerance,
-                "vertical_oversampling": m,
-                "canopy_reflectance": rho_v,
-                "ground_reflectance": ground.reflectance,
-                "ground_slope_deg": ground.slope_deg,
-                "understory_height_m": understory.height if understory else 0.0,
-                "understory_lai": understory.lai if understory else 0.0,
-            },
-        )
-
-    def _convolve_layers(self, layer_energy, first, n_bins):
-        """Samples at bins 0..n_bins−1 from energies of global layers first, first + 1, …"""
-        m, q0 = self.oversampling, self.kernel_offset
-        full = np.convolve(layer_energy, self.kernel)  # full[k] ↔ q = q0 + k − t
-        out = np.zeros(n_bins)
-        # bin j reads full[j·m − first − q0]
-        j_first = max(0, -(-(first + q0) // m))
-        j_last = min(n_bins - 1, (full.size - 1 + first + q0) // m)
-        if j_last >= j_first:
-            start = j_first * m - first - q0
-            out[j_first : j_last + 1] = full[start::m][: j_last - j_first + 1]
-        return out
-
-    def _ground_deposit(self, found, profiles, ground):
-        """Ground heights (m) and their weights ∫w·P dA at the ground."""
-        # all foliage lies above the ground, so P̄ at the ground is P̄ at the lowest edge
-        at_ground = 1.0 if profiles is None else float(profiles.gap_edges[0])
-        if ground.is_flat:
-            return np.zeros(1), np.array([at_ground])
-        # bare slope: ground heights are Gaussian with σ = tan(slope)·σf
-        h = self.layer_height
-        spread = np.tan(np.radians(ground.slope_deg)) * self.instrument.footprint_sigma_m
-        reach = self.footprint_radius * np.tan(np.radians(ground.slope_deg))
-        k = np.arange(np.floor(-reach / h) - 1, np.ceil(reach / h) + 2)
-        mass = np.diff(ndtr((np.append(k - 0.5, k[-1] + 0.5) * h) / spread))
-        nodes, values = k * h, mass / mass.sum()
-        if profiles is not None and found.column.size:
-            # remove what the crowns intercept above each crowned column's own ground:
-            # crowns are clipped there, so that is the column's whole optical depth (an
-            # interpolation inside the ground's layer would miss the foliage above it)
-            cols = profiles.crowned_columns
-            z_ground = ground.elevation(found.points[cols, 0], found.points[cols, 1])
-            lost = found.weights[cols] * -np.expm1(-profiles.column_depth)
-            g = z_ground / h
-            lower = np.floor(g)
-            frac = g - lower
-            nodes = np.concatenate([nodes, lower * h, (lower + 1) * h])
-            values = np.concatenate([values, -lost * (1 - frac), -lost * frac])
-        unique, inverse = np.unique(np.round(nodes / h).astype(np.int64), return_inverse=True)
-        weights = np.maximum(np.bincount(inverse, values), 0.0)
-        # the Gaussian spread of ground heights and the crowned columns are two different
-        # discretisations, so a node can go slightly negative where crowns shade most of
-        # its ground: clip, and rescale so that the weights sum to P̄ at the ground exactly
-        # (the canopy energy is ρv(1 − P̄ at the lowest edge): the two stay consistent)
-        positive = float(weights.sum())
-        if positive > 0:
-            weights *= at_ground / positive
-        else:
-            weights[np.argmin(np.abs(unique))] = at_ground
-        return unique * h, weights
-
-    def _ground_samples(self, nodes, weights, heights):
-        dz = self.instrument.bin_height
-        low, high = self.pulse_support
-        out = np.zeros(heights.size)
-        for z, w in zip(nodes, weights):
-            lo = np.searchsorted(heights, z + low)
-            hi = np.searchsorted(heights, z + high, side="right")
-            if hi > lo:
-                out[lo:hi] += w * dz * self.instrument.pulse.pdf(heights[lo:hi] - z)
-        return out
-
-
-def _layers_to_bins(layer_values, first, m, n_bins):
-    """Sum fine-layer values into the digitiser bins they fall in (window bins only)."""
-    bins = (first + np.arange(layer_values.size)) // m
-    keep = (bins >= 0) & (bins < n_bins)
-    return np.bincount(bins[keep], layer_values[keep], minlength=n_bins)[:n_bins]
+            mass = sums.ground_mass
+            nodes = (ground_nodes[0] + np.arange(mass.size)) * h
+            weights = mass * (at_ground / mass.sum()) if mass.sum() > 0 else mass
+        settings = {
+            "scheme": "columns",
+            "tolerance": sim.accuracy.tolerance,
+            "column_spacing_m": grid.spacing,
+            "columns": grid.n_columns,
+            "backend": "numba" if sim.backend is column_kernel_numba else "numpy",
+        }
+        return profiles, (layers, first), nodes, weights, settings

@@ -1,4 +1,8 @@
-"""Footprint quadrature: crown-aligned points weighted by the Gaussian beam.
+"""Footprint truncation, and the per-crown quadrature of earlier versions.
+
+The per-crown quadrature (scheme ``"crowns"`` of :class:`forward.accuracy.AccuracySettings`)
+is exact for isolated crowns but converges slowly where crowns overlap; the engine's
+default is the grid of columns of :mod:`forward.column_grid`.
 
 The waveform is the w-weighted mean of column returns, w(r) = exp(−r²/2σf²)/(2πσf²),
 truncated at the radius whose outer weight equals a stated tolerance,
@@ -22,6 +26,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial.legendre import leggauss
 from scipy.spatial import cKDTree
+from scipy.special import ndtr
+
+from .crowns import crown_interval
+from .gap import column_profiles, with_understory
 
 
 def truncation_radius(sigma, tolerance):
@@ -161,3 +169,112 @@ def crown_crossings(quadrature, dx, dy, crown_radius, sigma, tolerance) -> Crown
     column, tree, rho = column[inside], tree[inside], np.minimum(rho[inside], 1.0)
     cover = np.bincount(column, minlength=points.shape[0])
     return CrownCrossings(points, weights / np.maximum(cover, 1), column, tree, rho)
+
+
+class CrownFootprint:
+    """One footprint under the per-crown quadrature: its crossings, then its profiles.
+
+    The interface of the engine's column scheme: ``top`` and ``bottom`` (m) of the
+    crossings, and :meth:`profiles` on the bins at ``heights``.
+    """
+
+    def __init__(self, sim, prepared, cx, cy, ground, understory):
+        self.sim, self.ground, self.understory = sim, ground, understory
+        self.crossings = _crossings(sim, prepared, cx, cy, ground)
+        self.top = float(self.crossings[2].max(initial=0.0))
+        self.bottom = float(self.crossings[1].min(initial=0.0))
+
+    def profiles(self, heights):
+        """Profiles on the fine layers of ``heights``: (profiles, (layers, first layer),
+        ground heights (m), their shares of P̄ at the ground, scheme settings)."""
+        sim, ground, understory = self.sim, self.ground, self.understory
+        found, z_low, z_high, extinction, favd = self.crossings
+        span_low = min(z_low.min(initial=np.inf), 0.0 if understory else np.inf)
+        span_high = max(z_high.max(initial=-np.inf), understory.height if understory else -np.inf)
+        if span_high <= span_low:  # nothing above the ground: a one-layer empty canopy
+            span_low, span_high = 0.0, sim.layer_height
+        layers, first = sim.layer_grid(heights, span_low, span_high)
+        profiles = column_profiles(
+            found.column,
+            z_low,
+            z_high,
+            extinction,
+            favd,
+            layers,
+            found.weights,
+            keep_depth=not ground.is_flat,
+        )
+        profiles = with_understory(profiles, layers, understory, sim.instrument.extinction_per_favd)
+        nodes, weights = _ground_deposit(sim, found, profiles, ground)
+        settings = {
+            "scheme": "crowns",
+            "radial_nodes": sim.quadrature.radial_nodes,
+            "angular_nodes": sim.quadrature.angular_nodes,
+        }
+        return profiles, (layers, first), nodes, weights, settings
+
+
+def _crossings(sim, prepared, cx, cy, ground):
+    """Quadrature columns of all crowns that reach the truncated footprint."""
+    stand = prepared.stand
+    reach = sim.footprint_radius + prepared.max_radius
+    near = np.asarray(prepared.tree.query_ball_point((cx, cy), reach), np.intp)
+    if near.size == 0:  # bare ground: nothing to intersect
+        empty, none = np.zeros(0), np.zeros(0, np.intp)
+        found = CrownCrossings(np.zeros((0, 2)), empty, none, none, empty)
+        return found, empty, empty, empty, empty
+    dx, dy = stand.x[near] - cx, stand.y[near] - cy
+    found = crown_crossings(
+        sim.quadrature,
+        dx,
+        dy,
+        stand.crown_radius[near],
+        sim.instrument.footprint_sigma_m,
+        sim.accuracy.footprint_tolerance,
+    )
+    index = near[found.tree]
+    base = stand.crown_base[index] + ground.elevation(dx[found.tree], dy[found.tree])
+    z_low, z_high = crown_interval(stand.shape[index], found.rho, base, stand.crown_length[index])
+    if not ground.is_flat:  # foliage below the local ground surface does not exist
+        local = ground.elevation(found.points[found.column, 0], found.points[found.column, 1])
+        z_low, z_high = np.maximum(z_low, local), np.maximum(z_high, local)
+    return found, z_low, z_high, prepared.extinction[index], stand.favd[index]
+
+
+def _ground_deposit(sim, found, profiles, ground):
+    """Ground heights (m) and their weights ∫w·P dA at the ground."""
+    # all foliage lies above the ground, so P̄ at the ground is P̄ at the lowest edge
+    at_ground = float(profiles.gap_edges[0])
+    if ground.is_flat:
+        return np.zeros(1), np.array([at_ground])
+    # bare slope: ground heights are Gaussian with σ = tan(slope)·σf
+    h = sim.layer_height
+    spread = np.tan(np.radians(ground.slope_deg)) * sim.instrument.footprint_sigma_m
+    reach = sim.footprint_radius * np.tan(np.radians(ground.slope_deg))
+    k = np.arange(np.floor(-reach / h) - 1, np.ceil(reach / h) + 2)
+    mass = np.diff(ndtr((np.append(k - 0.5, k[-1] + 0.5) * h) / spread))
+    nodes, values = k * h, mass / mass.sum()
+    if found.column.size:
+        # remove what the crowns intercept above each crowned column's own ground:
+        # crowns are clipped there, so that is the column's whole optical depth (an
+        # interpolation inside the ground's layer would miss the foliage above it)
+        cols = profiles.crowned_columns
+        z_ground = ground.elevation(found.points[cols, 0], found.points[cols, 1])
+        lost = found.weights[cols] * -np.expm1(-profiles.column_depth)
+        g = z_ground / h
+        lower = np.floor(g)
+        frac = g - lower
+        nodes = np.concatenate([nodes, lower * h, (lower + 1) * h])
+        values = np.concatenate([values, -lost * (1 - frac), -lost * frac])
+    unique, inverse = np.unique(np.round(nodes / h).astype(np.int64), return_inverse=True)
+    weights = np.maximum(np.bincount(inverse, values), 0.0)
+    # the Gaussian spread of ground heights and the crowned columns are two different
+    # discretisations, so a node can go slightly negative where crowns shade most of
+    # its ground: clip, and rescale so that the weights sum to P̄ at the ground exactly
+    # (the canopy energy is ρv(1 − P̄ at the lowest edge): the two stay consistent)
+    positive = float(weights.sum())
+    if positive > 0:
+        weights *= at_ground / positive
+    else:
+        weights[np.argmin(np.abs(unique))] = at_ground
+    return unique * h, weights

@@ -80,7 +80,7 @@ def _deposit_kinks(row, z_low, z_high, weight, grid, n_rows):
     return deposit.reshape(n_edges, n_rows)
 
 
-def _layer_integral(deposit, h):
+def layer_integral(deposit, h):
     """Per-layer integral of the deposited ramps, top layer first, clipped at ≥ 0.
 
     The ramp sum at edge k (from the top) is h·Σ_{j<k} S_j with S the running sum of the
@@ -89,6 +89,14 @@ def _layer_integral(deposit, h):
     running = np.cumsum(deposit[:-1], axis=0)
     running *= h
     return np.maximum(running, 0.0, out=running)
+
+
+def gap_from_returns(layer_return):
+    """Footprint-mean gap P̄ (n_layers + 1) at the layer edges from the layer returns
+    (bottom layer first): 1 minus the returns above each edge, clipped to [0, 1]."""
+    above = np.zeros(layer_return.size + 1)
+    above[:-1] = np.cumsum(layer_return[::-1])[::-1]
+    return np.clip(1.0 - above, 0.0, 1.0)
 
 
 #: Work-array budget (elements) of one block of columns in :func:`column_profiles`.
@@ -173,10 +181,7 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
         # quadrature can weigh the columns slightly above 1; cap the intercepted fraction
         # at 1 so that P̄(0) = 0 exactly and canopy + ground energy stay consistent
         layer_return /= intercepted
-    gap_edges = np.empty(grid.n_layers + 1)
-    gap_edges[-1] = 0.0
-    gap_edges[:-1] = np.cumsum(layer_return[::-1])[::-1]
-    gap_edges = np.clip(1.0 - gap_edges, 0.0, 1.0)
+    gap_edges = gap_from_returns(layer_return)
 
     # a column's whole depth is the sum of its crossings' k·G·Ω·u × path length
     depth = (
@@ -186,7 +191,7 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
     single = np.zeros_like(row)
     pair_weight = weights[column]
     volume, foliage = (
-        _layer_integral(_deposit_kinks(single, z_low, z_high, w, grid, 1), h)[:, 0][::-1]
+        layer_integral(_deposit_kinks(single, z_low, z_high, w, grid, 1), h)[:, 0][::-1]
         for w in (pair_weight, pair_weight * density)
     )
     return ColumnProfiles(
@@ -201,10 +206,23 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
 
 def _block_losses(row, z_low, z_high, extinction, grid, n_rows):
     """Layer losses 1 − exp(−Δτ) of each column, top layer first."""
-    dtau = _layer_integral(
+    dtau = layer_integral(
         _deposit_kinks(row, z_low, z_high, extinction, grid, n_rows), grid.thickness
     )
     return -np.expm1(-dtau)  # exact for optically thin layers
+
+
+def with_understory(profiles, grid, understory, extinction_per_favd):
+    """The profiles with a uniform understory layer folded in (unchanged for None)."""
+    if understory is None:
+        return profiles
+    return add_uniform_layer(
+        profiles,
+        grid,
+        extinction_per_favd * understory.favd,
+        understory.favd,
+        understory.height,
+    )
 
 
 def add_uniform_layer(profiles, grid, extinction_per_m, foliage_per_m, top):
@@ -222,11 +240,8 @@ def add_uniform_layer(profiles, grid, extinction_per_m, foliage_per_m, top):
     trees = profiles.gap_edges
     layer_return = uniform[1:] * profiles.layer_return + trees[:-1] * uniform[1:] * -np.expm1(-dtau)
     foliage = profiles.foliage_area + foliage_per_m * (above[:-1] - above[1:])
-    gap_edges = np.empty_like(trees)
-    gap_edges[-1] = 0.0
-    gap_edges[:-1] = np.cumsum(layer_return[::-1])[::-1]
     return ColumnProfiles(
-        gap_edges=np.clip(1.0 - gap_edges, 0.0, 1.0),
+        gap_edges=gap_from_returns(layer_return),
         layer_return=layer_return,
         crown_volume=profiles.crown_volume,
         foliage_area=foliage,

@@ -36,6 +36,15 @@ class Ground:
     def is_flat(self) -> bool:
         return self.slope_deg == 0.0
 
+    @property
+    def gradient(self) -> tuple[float, float]:
+        """(∂z/∂x, ∂z/∂y) of the plane (m/m)."""
+        if self.is_flat:
+            return 0.0, 0.0
+        tangent = float(np.tan(np.radians(self.slope_deg)))
+        aspect = np.radians(self.aspect_deg)
+        return tangent * float(np.cos(aspect)), tangent * float(np.sin(aspect))
+
     def elevation(self, dx, dy):
         """Ground height at offsets from the beam centre.
 
@@ -50,9 +59,8 @@ class Ground:
         """
         if self.is_flat:
             return np.zeros(np.broadcast(dx, dy).shape)
-        gradient = np.tan(np.radians(self.slope_deg))
-        aspect = np.radians(self.aspect_deg)
-        return gradient * (np.cos(aspect) * np.asarray(dx) + np.sin(aspect) * np.asarray(dy))
+        gx, gy = self.gradient
+        return gx * np.asarray(dx) + gy * np.asarray(dy)
 
 
 @dataclass(frozen=True)

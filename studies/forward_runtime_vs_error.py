@@ -1,192 +1,324 @@
-"""Run time against accuracy of the explicit engine (issue: explicit forward model).
+"""Run time against error of the explicit engine, per kind of stand (issue 30).
 
-Scene: GEDI footprints (σf 5.5 m, 1 ns bins, 15 ns pulse) over a 800 trees/ha stand with
-heights 10–30 m and mixed crown shapes. Error is the relative L1 distance to a converged
-run of the same engine (32 × 128 nodes per crown, truncation 1e-8, 4× vertical
-oversampling), averaged over footprints; time is the median per-footprint wall time on
-one core with per-stand work done once.
+Stands on 100 m × 100 m plots, seen by GEDI (σf 5.5 m, 1 ns bins, 15 ns pulse) with
+150–400 trees in the truncated footprint:
+
+- ``sparse``: 1000 stems/ha, 5–15 m tall, crown radius 0.6–1.4 m, cones and ellipsoids,
+  FAVD 0.8;
+- ``mixed``: 1200 stems/ha, 10–30 m, crown radius 0.5 + 0.08·h, all four shapes, FAVD 0.6;
+- ``dense``: 1800 stems/ha of cones 12–25 m tall, crown radius 2–3.5 m, FAVD 1.5: crowns
+  overlap everywhere;
+- ``hotspot``: the dense stand with k = 2 (two-way attenuation, no hot spot);
+
+and ``slicer``: SLICER (σf 2.5 m, 4 ns pulse) over 1200 stems/ha of hemi-ellipsoids.
+
+The converged reference is the column engine at 0.03 m spacing (SLICER 0.015 m),
+truncation 1e-7 and four times the default fine layers; the brute-force model of
+``tests/reference_model.py`` (0.1 m columns, exact in z, independent code) is run on the
+first footprint of each stand as a check and as a point on the figure. The old engine is
+the per-crown quadrature (4 × 8 nodes, its default, 8 × 16 and 16 × 32); the new one the
+column engine at tolerances 1e-2, 3e-3 (its default), 1e-3 and 3e-4. Errors: relative L1
+Σ|W − W_ref| / ΣW_ref and the relative error of the ground energy ρg·P̄(0), mean and
+maximum over the footprints. Times: per footprint on one core, per-stand work done once,
+every setting timed in turn within each repeat (old and new interleaved in one process),
+the minimum over repeats, as the thread's CPU time (``ms_per_footprint``: the machine is
+shared, and CPU time leaves out the time other processes hold the core) and as wall time;
+a speed probe (a fixed compiled loop) at start and end records how loaded the machine
+was.
 
     python studies/forward_runtime_vs_error.py [--quick]
 
-Writes studies/output/forward_runtime_vs_error/{pareto.png,summary.json}.
+Writes studies/output/forward_runtime_vs_error/{runtime_vs_error.png,summary.json}.
 """
 
-import argparse
-import json
-import time
-from pathlib import Path
+import os
 
-import numpy as np
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ[_name] = "1"
 
-import forward as fw
+import argparse  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.reference_model
+
+import forward as fw  # noqa: E402
+from tests.reference_model import reference_waveform  # noqa: E402
 
 OUT = Path(__file__).parent / "output" / "forward_runtime_vs_error"
+HALF_WIDTH = 50.0  # m: the plots are 100 m × 100 m
+OLD = [(4, 8), (8, 16), (16, 32)]
+TOLERANCES = [1e-2, 3e-3, 1e-3, 3e-4]
+TARGET = {"relative_l1": 3e-3, "ground": 3e-3, "ms_per_footprint": 5.0}
 
 
-def benchmark_stand(rng, density_per_ha=800, half_width=60.0):
-    n = rng.poisson(density_per_ha * (2 * half_width) ** 2 / 1e4)
-    height = rng.uniform(10.0, 30.0, n)
+def _stems(rng, per_ha, half_width=HALF_WIDTH):
+    n = rng.poisson(per_ha * (2 * half_width) ** 2 / 1e4)
+    return n, rng.uniform(-half_width, half_width, n), rng.uniform(-half_width, half_width, n)
+
+
+def sparse_stand(rng):
+    n, x, y = _stems(rng, 1000)
+    h = rng.uniform(5.0, 15.0, n)
     return fw.Stand.from_arrays(
-        x=rng.uniform(-half_width, half_width, n),
-        y=rng.uniform(-half_width, half_width, n),
-        height=height,
-        crown_length=0.5 * height,
-        crown_radius=0.5 + 0.08 * height,
-        favd=0.6,
-        shape=rng.choice(["cone", "ellipsoid", "hemi-ellipsoid", "cylinder"], n),
-    )
+        x=x, y=y, height=h, crown_length=0.6 * h, crown_radius=rng.uniform(0.6, 1.4, n),
+        favd=0.8, shape=rng.choice(["cone", "ellipsoid"], n),
+    )  # fmt: skip
 
 
-def time_per_footprint(sim, prepared, centers, heights, repeats):
-    times = []
-    for _ in range(repeats):
+def mixed_stand(rng):
+    n, x, y = _stems(rng, 1200)
+    h = rng.uniform(10.0, 30.0, n)
+    return fw.Stand.from_arrays(
+        x=x, y=y, height=h, crown_length=0.5 * h, crown_radius=0.5 + 0.08 * h,
+        favd=0.6, shape=rng.choice(list(fw.SHAPE_NAMES), n),
+    )  # fmt: skip
+
+
+def dense_stand(rng):
+    n, x, y = _stems(rng, 1800)
+    h = rng.uniform(12.0, 25.0, n)
+    return fw.Stand.from_arrays(
+        x=x, y=y, height=h, crown_length=0.6 * h, crown_radius=rng.uniform(2.0, 3.5, n),
+        favd=1.5, shape="cone",
+    )  # fmt: skip
+
+
+def slicer_stand(rng):
+    n, x, y = _stems(rng, 1200, half_width=25.0)
+    h = rng.uniform(8.0, 16.0, n)
+    return fw.Stand.from_arrays(
+        x=x, y=y, height=h, crown_length=0.5 * h, crown_radius=rng.uniform(1.2, 2.4, n),
+        favd=0.8, shape="hemi-ellipsoid",
+    )  # fmt: skip
+
+
+#: Stand kind → (stand maker, instrument, spread of footprint centres (m), reference spacing).
+KINDS = {
+    "sparse": (sparse_stand, fw.instrument_preset("gedi"), 15.0, 0.03),
+    "mixed": (mixed_stand, fw.instrument_preset("gedi"), 15.0, 0.03),
+    "dense": (dense_stand, fw.instrument_preset("gedi"), 15.0, 0.03),
+    "hotspot": (dense_stand, fw.instrument_preset("gedi", hotspot_k=2.0), 15.0, 0.03),
+    "slicer": (slicer_stand, fw.instrument_preset("slicer"), 8.0, 0.015),
+}
+
+
+def speed_probe():
+    """Nanoseconds per step of a fixed compiled multiply-add loop (machine load)."""
+    from numba import njit
+
+    @njit(cache=True)
+    def loop(x):
+        total = 0.0
+        for v in x:
+            total += v * 1.0000001
+        return total
+
+    x = np.linspace(0.0, 1.0, 5_000_000)
+    loop(x)
+    best = np.inf
+    for _ in range(5):
         start = time.perf_counter()
-        for c, h in zip(centers, heights):
-            sim.simulate(prepared, center=c, heights=h)
-        times.append((time.perf_counter() - start) / len(centers))
-    return float(np.median(times))
+        loop(x)
+        best = min(best, time.perf_counter() - start)
+    return 1e9 * best / x.size
+
+
+def relative_l1(samples, reference):
+    return float(np.abs(samples - reference).sum() / reference.sum())
+
+
+def settings_list(quick):
+    old = OLD[:2] if quick else OLD
+    rows = [
+        ("old", f"{r}x{a}", fw.AccuracySettings(radial_nodes=r, angular_nodes=a)) for r, a in old
+    ]
+    rows += [("new", f"{t:g}", fw.AccuracySettings(tolerance=t)) for t in TOLERANCES]
+    return rows
+
+
+def study_kind(kind, n_footprints, repeats, quick):
+    make, instrument, spread, spacing = KINDS[kind]
+    rng = np.random.default_rng(2024)
+    stand = make(rng)
+    centers = rng.uniform(-spread, spread, (n_footprints, 2))
+    default = fw.WaveformSimulator(instrument)
+    reference = fw.WaveformSimulator(
+        instrument,
+        fw.AccuracySettings(
+            column_spacing=spacing,
+            truncation_tolerance=1e-7,
+            vertical_oversampling=4 * default.oversampling,
+        ),
+    )
+    refs = [reference.simulate(stand, center=c) for c in centers]
+    trees = [
+        default.prepare(stand).crowns_near(*c, default.footprint_radius, fw.Ground()).size
+        for c in centers
+    ]
+    runs = []
+    for engine, label, accuracy in settings_list(quick):
+        sim = fw.WaveformSimulator(instrument, accuracy)
+        prepared = sim.prepare(stand)
+        waveforms = [
+            sim.simulate(prepared, center=c, heights=r.heights) for c, r in zip(centers, refs)
+        ]
+        runs.append((engine, label, accuracy, sim, prepared, waveforms))
+    seconds = {label: [] for _, label, *_ in runs}
+    wall = {label: [] for _, label, *_ in runs}
+    for _ in range(repeats):  # every setting in turn within each repeat
+        for _, label, _, sim, prepared, _ in runs:
+            start, start_wall = time.thread_time(), time.perf_counter()
+            for c, r in zip(centers, refs):
+                sim.simulate(prepared, center=c, heights=r.heights)
+            seconds[label].append((time.thread_time() - start) / len(centers))
+            wall[label].append((time.perf_counter() - start_wall) / len(centers))
+    rows = []
+    for engine, label, accuracy, _, _, waveforms in runs:
+        errors = [relative_l1(w.samples, r.samples) for w, r in zip(waveforms, refs)]
+        ground = [abs(w.ground_gap / r.ground_gap - 1.0) for w, r in zip(waveforms, refs)]
+        rows.append(
+            {
+                "engine": engine,
+                "setting": label,
+                "is_default": accuracy == fw.AccuracySettings(radial_nodes=4, angular_nodes=8)
+                if engine == "old"
+                else accuracy == fw.AccuracySettings(),
+                "relative_l1_mean": float(np.mean(errors)),
+                "relative_l1_max": float(np.max(errors)),
+                "ground_error_mean": float(np.mean(ground)),
+                "ground_error_max": float(np.max(ground)),
+                "ms_per_footprint": 1e3 * float(np.min(seconds[label])),
+                "wall_ms_per_footprint": 1e3 * float(np.min(wall[label])),
+                "columns": waveforms[0].settings.get("columns"),
+                "column_spacing_m": waveforms[0].settings.get("column_spacing_m"),
+            }
+        )
+    rows.append(brute_force(stand, instrument, centers[0], refs[0], quick))
+    old_default = next(r for r in rows if r["engine"] == "old" and r["is_default"])
+    new_default = next(r for r in rows if r["engine"] == "new" and r["is_default"])
+    return {
+        "instrument": instrument.describe(),
+        "stems": stand.n_trees,
+        "trees_in_footprint": [int(min(trees)), int(max(trees))],
+        "ground_gap_range": [
+            float(min(r.ground_gap for r in refs)),
+            float(max(r.ground_gap for r in refs)),
+        ],
+        "footprints": n_footprints,
+        "reference_spacing_m": spacing,
+        "rows": rows,
+        "old_over_new_default_time": old_default["ms_per_footprint"]
+        / new_default["ms_per_footprint"],
+        "old_over_new_default_error": old_default["relative_l1_mean"]
+        / new_default["relative_l1_mean"],
+        "default_meets_target": bool(
+            new_default["relative_l1_max"] <= TARGET["relative_l1"]
+            and new_default["ms_per_footprint"] <= TARGET["ms_per_footprint"]
+        ),
+        "default_ground_within_target": bool(new_default["ground_error_max"] <= TARGET["ground"]),
+    }
+
+
+def brute_force(stand, instrument, center, ref, quick):
+    """The brute-force model on one footprint: its error and run time."""
+    spacing = 0.2 if quick else 0.1
+    start, start_wall = time.thread_time(), time.perf_counter()
+    samples, ground_gap = reference_waveform(
+        stand, instrument, ref.heights, center=center, spacing=spacing, fine=0.01
+    )
+    seconds, wall = time.thread_time() - start, time.perf_counter() - start_wall
+    error = relative_l1(samples, ref.samples)
+    return {
+        "engine": "brute force",
+        "setting": f"{spacing} m columns",
+        "is_default": False,
+        "relative_l1_mean": error,
+        "relative_l1_max": error,
+        "ground_error_mean": abs(ground_gap / ref.ground_gap - 1.0),
+        "ground_error_max": abs(ground_gap / ref.ground_gap - 1.0),
+        "ms_per_footprint": 1e3 * seconds,
+        "wall_ms_per_footprint": 1e3 * wall,
+        "columns": None,
+        "column_spacing_m": spacing,
+    }
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer settings and footprints")
+    parser.add_argument("--quick", action="store_true", help="fewer footprints and settings")
+    parser.add_argument("--kinds", default=",".join(KINDS), help="comma-separated stand kinds")
     args = parser.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(2000)
-    stand = benchmark_stand(rng)
-    instrument = fw.instrument_preset("gedi")
-    n_fp = 3 if args.quick else 8
-    centers = rng.uniform(-30, 30, (n_fp, 2))
-    reference_settings = fw.AccuracySettings(
-        radial_nodes=16 if args.quick else 32,
-        angular_nodes=64 if args.quick else 128,
-        truncation_tolerance=1e-8,
-        vertical_oversampling=4,
-    )
-    reference_sim = fw.WaveformSimulator(instrument, reference_settings)
-    references = [reference_sim.simulate(stand, center=c) for c in centers]
-    heights = [r.heights for r in references]
-
-    nodes = [(2, 4), (3, 6), (4, 8), (6, 12), (8, 16)]
-    tolerances = [1e-2, 1e-3, 1e-4]
-    oversampling = [None, 2]
-    if args.quick:
-        nodes, tolerances, oversampling = nodes[:4], [1e-2, 1e-3], [None]
-    default = fw.AccuracySettings()
-    rows = []
-    for radial, angular in nodes:
-        for tol in tolerances:
-            for m in oversampling:
-                settings = fw.AccuracySettings(
-                    radial_nodes=radial,
-                    angular_nodes=angular,
-                    truncation_tolerance=tol,
-                    vertical_oversampling=m,
-                )
-                sim = fw.WaveformSimulator(instrument, settings)
-                prepared = sim.prepare(stand)
-                errors = []
-                for c, h, ref in zip(centers, heights, references):
-                    wf = sim.simulate(prepared, center=c, heights=h)
-                    errors.append(np.abs(wf.samples - ref.samples).sum() / ref.samples.sum())
-                seconds = time_per_footprint(
-                    sim, prepared, centers, heights, 3 if args.quick else 7
-                )
-                rows.append(
-                    {
-                        "radial_nodes": radial,
-                        "angular_nodes": angular,
-                        "truncation_tolerance": tol,
-                        "vertical_oversampling": sim.oversampling,
-                        "relative_l1_error": float(np.mean(errors)),
-                        "max_relative_l1_error": float(np.max(errors)),
-                        "ms_per_footprint": 1e3 * seconds,
-                        "is_default": settings == default,
-                    }
-                )
-                print(
-                    f"{radial:>2}x{angular:<3} tol={tol:g} m={sim.oversampling}: "
-                    f"L1 {100 * rows[-1]['relative_l1_error']:.3f}% "
-                    f"in {rows[-1]['ms_per_footprint']:.2f} ms"
-                )
-    pareto = []
-    for row in sorted(rows, key=lambda r: r["ms_per_footprint"]):
-        if not pareto or row["relative_l1_error"] < pareto[-1]["relative_l1_error"]:
-            pareto.append(row)
-    for row in rows:
-        row["on_pareto_front"] = any(row is p for p in pareto)
-    default_row = next((r for r in rows if r["is_default"]), None)
-    meets = [r for r in rows if r["relative_l1_error"] <= 5e-3 and r["ms_per_footprint"] <= 5]
-    summary = {
-        "scene": {
-            "instrument": "gedi",
-            "footprint_sigma_m": 5.5,
-            "bin_ns": 1.0,
-            "pulse_fwhm_ns": 15.0,
-            "trees": stand.n_trees,
-            "density_per_ha": 800,
-            "heights_m": [10, 30],
-            "footprints": n_fp,
-        },
-        "reference_settings": {
-            k: getattr(reference_settings, k)
-            for k in (
-                "radial_nodes",
-                "angular_nodes",
-                "truncation_tolerance",
-                "vertical_oversampling",
+    probe_start, load_start = speed_probe(), os.getloadavg()[0]
+    n_footprints, repeats = (3, 2) if args.quick else (8, 5)
+    results = {}
+    for kind in args.kinds.split(","):
+        results[kind] = study_kind(kind, n_footprints, repeats, args.quick)
+        for row in results[kind]["rows"]:
+            print(
+                f"{kind:8s} {row['engine']:11s} {row['setting']:>12s}: "
+                f"L1 {100 * row['relative_l1_mean']:.3f}/{100 * row['relative_l1_max']:.3f} %, "
+                f"ground {100 * row['ground_error_mean']:.3f}/{100 * row['ground_error_max']:.3f} %, "
+                f"{row['ms_per_footprint']:.2f} ms",
+                flush=True,
             )
-        },
-        "target": {"relative_l1_error": 5e-3, "ms_per_footprint": 5.0},
-        "default": default_row,
-        "settings_meeting_target": meets,
-        "pareto_front": pareto,
-        "all": rows,
+    summary = {
+        "target": TARGET,
+        "speed_probe_ns_per_step": [probe_start, speed_probe()],
+        "load_average": [load_start, os.getloadavg()[0]],
+        "kinds": results,
     }
     (OUT / "summary.json").write_text(json.dumps(summary, indent=2))
-    plot(rows, pareto, default_row)
-    print(f"wrote {OUT / 'summary.json'} and {OUT / 'pareto.png'}")
+    plot(results)
+    print(f"wrote {OUT / 'summary.json'} and {OUT / 'runtime_vs_error.png'}")
 
 
-def plot(rows, pareto, default_row):
+def plot(results):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 4.5))
-    ax.scatter(
-        [r["ms_per_footprint"] for r in rows],
-        [100 * r["relative_l1_error"] for r in rows],
-        s=14,
-        c="0.6",
-        label="settings",
-    )
-    ax.plot(
-        [r["ms_per_footprint"] for r in pareto],
-        [100 * r["relative_l1_error"] for r in pareto],
-        "-o",
-        ms=4,
-        label="Pareto front",
-    )
-    if default_row:
-        ax.plot(
-            default_row["ms_per_footprint"],
-            100 * default_row["relative_l1_error"],
-            "r*",
-            ms=14,
-            label="default",
-        )
-    ax.axhline(0.5, ls=":", c="k")
-    ax.axvline(5.0, ls=":", c="k")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("time per footprint (ms, one core)")
-    ax.set_ylabel("relative L1 error (%)")
-    ax.set_title("Explicit engine: GEDI footprint, 800 trees/ha")
-    ax.legend(fontsize=8)
+    n = len(results)
+    fig, axes = plt.subplots(2, n, figsize=(3.6 * n, 7.0), squeeze=False)
+    style = {"old": ("C0", "o-"), "new": ("C3", "s-"), "brute force": ("k", "*")}
+    labels = {"old": "per-crown quadrature", "new": "columns (tolerance)"}
+    for column, (kind, result) in enumerate(results.items()):
+        for row, key in enumerate(("relative_l1_mean", "ground_error_mean")):
+            ax = axes[row][column]
+            for engine, (colour, marker) in style.items():
+                rows = [r for r in result["rows"] if r["engine"] == engine]
+                ax.plot(
+                    [r["ms_per_footprint"] for r in rows],
+                    [100 * r[key] for r in rows],
+                    marker,
+                    color=colour,
+                    ms=9 if engine == "brute force" else 4,
+                    label=labels.get(engine, "brute force"),
+                )
+                for r in rows:
+                    if r["is_default"]:
+                        ax.plot(r["ms_per_footprint"], 100 * r[key], "o", mfc="none",
+                                mec=colour, ms=12)  # fmt: skip
+            ax.axhline(100 * TARGET["relative_l1" if row == 0 else "ground"], ls=":", c="k")
+            ax.axvline(TARGET["ms_per_footprint"], ls=":", c="k")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+        low, high = result["trees_in_footprint"]
+        axes[0][column].set_title(f"{kind} ({low}–{high} trees)", fontsize=9)
+        axes[1][column].set_xlabel("CPU ms per footprint (one core)")
+    axes[0][0].set_ylabel("relative L1 error (%)")
+    axes[1][0].set_ylabel("ground energy error (%)")
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle("Explicit engine: run time against error, mean over footprints (circled: "
+                 "defaults)", fontsize=10)  # fmt: skip
     fig.tight_layout()
-    fig.savefig(OUT / "pareto.png", dpi=120)
+    fig.savefig(OUT / "runtime_vs_error.png", dpi=120)
     plt.close(fig)
 
 

@@ -45,7 +45,7 @@ FIXES = [
         "input": "crown on sloped ground whose base lies below the local ground at some of "
         "its columns (e.g. h = 0.53 m, Lc = 0.07 m, Rc = 1.2 m, 40° slope, σf = 1 m)",
         "symptom": "canopy + ground energy exceeded ρv(1 − P̄) + ρg·P̄ (1.015 for ρv = ρg = 1)",
-        "fix": "engine._crossings clips crown intervals at each column's own ground height",
+        "fix": "the crossings (footprint._crossings; the column kernels likewise) clip crown intervals at each column's own ground height",
         "test": "test_engine_invariants_hold_across_extremes",
     },
     {

@@ -4,6 +4,7 @@ import numpy as np
 
 import forward as fw
 import forward.gap as gap_module
+from forward.render import ground_samples
 
 
 def ring_stand(rng, n, inner, outer):
@@ -23,8 +24,7 @@ def ring_stand(rng, n, inner, outer):
 def test_trees_beyond_the_footprint_reach_no_crossing(gedi, rng):
     sim = fw.WaveformSimulator(gedi)
     far = ring_stand(rng, 500, sim.footprint_radius + 2.0, sim.footprint_radius + 80.0)
-    found = sim._crossings(sim.prepare(far), 0.0, 0.0, fw.Ground())[0]
-    assert found.column.size == 0 and found.points.shape[0] == 0
+    assert sim.prepare(far).crowns_near(0.0, 0.0, sim.footprint_radius, fw.Ground()).size == 0
     wf = sim.simulate(far)
     assert wf.canopy_energy == 0.0 and np.all(wf.canopy == 0.0)
 
@@ -32,12 +32,13 @@ def test_trees_beyond_the_footprint_reach_no_crossing(gedi, rng):
 def test_empty_scene_is_the_ground_return_alone(gedi):
     sim = fw.WaveformSimulator(gedi)
     wf = sim.simulate(fw.Stand.empty())
-    alone = 0.3 * sim._ground_samples(np.zeros(1), np.ones(1), wf.heights)
+    alone = 0.3 * ground_samples(sim, np.zeros(1), np.ones(1), wf.heights)
     np.testing.assert_array_equal(wf.samples, alone)
 
 
 def test_column_blocks_span_only_their_own_crowns(monkeypatch, gedi, rng):
-    """Each block of crowned columns is processed over its own crowns' layer span."""
+    """Each block of crowned columns is processed over its own crowns' layer span (the
+    numpy kernel's blocks; the compiled kernel walks each column over its own crowns)."""
     spans = []
     original = gap_module._block_losses
 
@@ -57,7 +58,7 @@ def test_column_blocks_span_only_their_own_crowns(monkeypatch, gedi, rng):
         shape=np.concatenate([low.shape, high.shape]),
         favd=np.concatenate([low.favd, high.favd]),
     )  # fmt: skip
-    sim = fw.WaveformSimulator(gedi)
+    sim = fw.WaveformSimulator(gedi, fw.AccuracySettings(backend="numpy"))
     sim.simulate(stand)
     h = sim.layer_height
     assert len(spans) > 1

@@ -1,0 +1,293 @@
+"""Footprint sums over a grid of columns: the compiled kernel (needs numba).
+
+:func:`footprint_profiles` has the arguments and results of
+:func:`forward.column_kernel.footprint_profiles` and agrees with it to rounding; it works
+column by column, so its memory is the crown lists of the bins and a few arrays over the
+layers, whatever the number or size of the crowns.
+
+For each bin of columns the crowns whose discs reach it are copied together. For each
+column, every crown over it adds its optical-depth ramp, a kink of +k·G·Ω·u where the
+column enters the crown and −k·G·Ω·u where it leaves; the kinks are shared linearly by
+the two nearest layer edges, so that a running sum of them from the top gives each
+layer's optical depth Δτ exactly (:mod:`forward.gap`). Walking down the column, the gap
+P falls by the factor exp(−Δτ) in each layer and the layer returns ω·P·(1 − exp(−Δτ)),
+with 1 − exp(−Δτ) taken to full relative precision for thin layers; one exponential is
+taken per run of layers at one Δτ, not per layer. :data:`AVAILABLE` is False when numba
+cannot be imported.
+"""
+
+import importlib.util
+
+import numpy as np
+
+from . import crowns as crown_shapes
+from .column_grid import ColumnGrid, CrownSet, crown_node_ranges
+from .column_kernel import FootprintSums
+from .gap import LayerGrid, layer_integral
+
+#: Whether numba is installed (it is imported, and the kernel compiled, on first use).
+AVAILABLE = importlib.util.find_spec("numba") is not None
+
+__all__ = ["AVAILABLE", "footprint_profiles"]
+
+#: Shape codes, in the order of :data:`forward.crowns.SHAPE_NAMES`.
+_CONE, _ELLIPSOID, _HEMI_ELLIPSOID, _CYLINDER = (
+    crown_shapes.SHAPE_NAMES.index(name)
+    for name in ("cone", "ellipsoid", "hemi-ellipsoid", "cylinder")
+)
+
+#: Below this optical depth, 1 − exp(−Δτ) is summed from its series (five terms leave
+#: less than Δτ⁵/720 ≤ 2e-18 relative error); above it, 1 − exp(−Δτ) loses at most
+#: 1e-13 relative to rounding.
+_SERIES_DEPTH = 1e-3
+
+
+def _extent(code, rho):
+    """Crown interval (s_low, s_high) at normalised radius ``rho``: the shape registry's
+    extents (:mod:`forward.crowns`), compiled and chosen by code."""
+    if code == _CONE:
+        return _cone(rho)
+    if code == _ELLIPSOID:
+        return _ellipsoid(rho)
+    if code == _HEMI_ELLIPSOID:
+        return _hemi_ellipsoid(rho)
+    return _cylinder(rho)
+
+
+def _transmission(depth):
+    """exp(−depth) and 1 − exp(−depth), the latter to full relative precision."""
+    if depth < _SERIES_DEPTH:
+        d = depth
+        loss = d * (1.0 - d * (0.5 - d * (1.0 / 6.0 - d * (1.0 / 24.0 - d / 120.0))))
+        return 1.0 - loss, loss
+    q = np.exp(-depth)
+    return q, 1.0 - q
+
+
+def _bin_lists(first, last, bin_nodes, n_bins, x, y, radius, code, base, length, ext, favd):
+    """Crown records of every bin, stored bin after bin (a CSR layout).
+
+    Returns the bin offsets (n_bins² + 1), the records (x, y, R², 1/R, base, length,
+    k·G·Ω·u, u) and the shape codes of the crowns listed in each bin."""
+    counts = np.zeros(n_bins * n_bins + 1, np.int64)
+    for c in range(x.size):
+        for bi in range(first[c, 0] // bin_nodes, last[c, 0] // bin_nodes + 1):
+            for bj in range(first[c, 1] // bin_nodes, last[c, 1] // bin_nodes + 1):
+                counts[bi * n_bins + bj + 1] += 1
+    for k in range(n_bins * n_bins):
+        counts[k + 1] += counts[k]
+    fill = counts[:-1].copy()
+    records = np.empty((counts[-1], 8))
+    codes = np.empty(counts[-1], np.int64)
+    for c in range(x.size):
+        for bi in range(first[c, 0] // bin_nodes, last[c, 0] // bin_nodes + 1):
+            for bj in range(first[c, 1] // bin_nodes, last[c, 1] // bin_nodes + 1):
+                k = fill[bi * n_bins + bj]
+                fill[bi * n_bins + bj] += 1
+                records[k, 0], records[k, 1] = x[c], y[c]
+                records[k, 2], records[k, 3] = radius[c] * radius[c], 1.0 / radius[c]
+                records[k, 4], records[k, 5] = base[c], length[c]
+                records[k, 6], records[k, 7] = ext[c], favd[c]
+                codes[k] = code[c]
+    return counts, records, codes
+
+
+def _add_kink(array, position, value):
+    """Share ``value`` at fractional edge ``position`` (≥ 0) linearly between its two
+    edges; returns the upper one."""
+    node = int(position)
+    frac = position - node
+    array[node] += value * (1.0 - frac)
+    array[node + 1] += value * frac
+    return node
+
+
+#: A column with more crown edges than this is walked layer by layer instead of run by
+#: run: sorting many edges costs more than the scan.
+_MOST_SORTED = 8
+
+
+def _sort_marks(values, count):
+    """Sort ``values[:count]`` in place by insertion (a few crown edges)."""
+    for i in range(1, count):
+        value = values[i]
+        j = i - 1
+        while j >= 0 and values[j] > value:
+            values[j + 1] = values[j]
+            j -= 1
+        values[j + 1] = value
+
+
+def _run(returns, first, stop, p, depth_rate, h):
+    """Walk layers [first, stop) at a constant optical depth per metre ``depth_rate``:
+    each layer returns ω·P·(1 − exp(−Δτ)) and passes ω·P·exp(−Δτ) on. Returns ω·P
+    below the last layer."""
+    if depth_rate > 0.0 and stop > first:
+        q, loss = _transmission(h * depth_rate)
+        for t in range(first, stop):
+            returns[t] += p * loss
+            p *= q
+    return p
+
+
+def _walk(returns, kinks, marks, count, p, h):
+    """Walk one column down through its crowns, from ω·P = ``p`` at its top; returns
+    ω·P below its lowest crown.
+
+    ``marks[:count]`` are the upper edges of its kinks (each kink sits on that edge and
+    the next); the kinks are consumed (set to zero). Between marked edges the optical
+    depth per layer is constant: with few marks they are sorted and each run of layers
+    costs one exponential; with many, the column is scanned layer by layer, with one
+    exponential per change of depth.
+    """
+    if count > _MOST_SORTED:
+        first, last = marks[0], marks[0]
+        for k in range(1, count):
+            first, last = min(first, marks[k]), max(last, marks[k])
+        rate, q, loss = 0.0, 1.0, 0.0
+        for t in range(first, last + 2):
+            kink = kinks[t]
+            if kink != 0.0:
+                kinks[t] = 0.0
+                rate += kink
+                q, loss = _transmission(h * rate) if rate > 0.0 else (1.0, 0.0)
+            returns[t] += p * loss
+            p *= q
+        return p
+    _sort_marks(marks, count)
+    rate, i = 0.0, 0
+    while i < count:
+        t = marks[i]
+        while i < count and marks[i] == t:
+            i += 1
+        rate += kinks[t]
+        kinks[t] = 0.0
+        p = _run(returns, t, t + 1, p, rate, h)  # the layer below edge t
+        rate += kinks[t + 1]
+        kinks[t + 1] = 0.0
+        p = _run(returns, t + 1, marks[i] if i < count else t + 1, p, rate, h)
+    return p
+
+
+def _footprint_sums(
+    nodes, weights, r2, first, last, bin_nodes,
+    x, y, radius, code, base, length, ext, favd,
+    top, h, n_layers, gx, gy, sloped, ground_first, n_ground,
+):  # fmt: skip
+    """Compiled :func:`forward.column_kernel.footprint_profiles`: the layer returns and
+    the kinks of crown volume and foliage (edges counted from ``top``), and the ground
+    masses on sloped ground."""
+    n = nodes.size
+    n_bins = (n + bin_nodes - 1) // bin_nodes
+    offsets, rec, codes = _bin_lists(
+        first, last, bin_nodes, n_bins, x, y, radius, code, base, length, ext, favd
+    )
+    n_edges = n_layers + 1
+    returns = np.zeros(n_edges + 1)
+    kinks = np.zeros(n_edges + 1)
+    volume = np.zeros(n_edges + 1)
+    foliage = np.zeros(n_edges + 1)
+    ground = np.zeros(n_ground + 1)
+    most = max(1, np.max(np.diff(offsets)))  # crowns listed in the fullest bin
+    marks = np.empty(2 * most, np.int64)
+    hits = np.empty(most + 1, np.int64)
+    distance2 = np.empty(most + 1)
+    inv_h = 1.0 / h
+    for bi in range(n_bins):
+        for bj in range(n_bins):
+            m0, m1 = offsets[bi * n_bins + bj], offsets[bi * n_bins + bj + 1]
+            if m1 == m0 and not sloped:
+                continue
+            for i in range(bi * bin_nodes, min(n, (bi + 1) * bin_nodes)):
+                px = nodes[i]
+                for j in range(bj * bin_nodes, min(n, (bj + 1) * bin_nodes)):
+                    py = nodes[j]
+                    if px * px + py * py > r2:
+                        continue
+                    w = weights[i] * weights[j]
+                    z_ground = gx * px + gy * py
+                    n_hit = 0  # the bin's crowns over this column, listed without branching
+                    for m in range(m0, m1):
+                        dx, dy = px - rec[m, 0], py - rec[m, 1]
+                        hits[n_hit], distance2[n_hit] = m, dx * dx + dy * dy
+                        n_hit += distance2[n_hit] < rec[m, 2]
+                    count = 0
+                    for k in range(n_hit):
+                        m = hits[k]
+                        s_low, s_high = _extent(codes[m], np.sqrt(distance2[k]) * rec[m, 3])
+                        z_low = rec[m, 4] + s_low * rec[m, 5]
+                        z_high = rec[m, 4] + s_high * rec[m, 5]
+                        if sloped:  # foliage below the local ground surface does not exist
+                            z_low, z_high = max(z_low, z_ground), max(z_high, z_ground)
+                        if z_high <= z_low:
+                            continue
+                        a, wu = rec[m, 6], w * rec[m, 7]
+                        # edges counted from the top; clamped against rounding at the ends
+                        upper = min(max((top - z_high) * inv_h, 0.0), n_layers)
+                        lower = min(max((top - z_low) * inv_h, 0.0), n_layers)
+                        marks[count] = _add_kink(kinks, upper, a)
+                        marks[count + 1] = _add_kink(kinks, lower, -a)
+                        count += 2
+                        _add_kink(volume, upper, w)
+                        _add_kink(volume, lower, -w)
+                        _add_kink(foliage, upper, wu)
+                        _add_kink(foliage, lower, -wu)
+                    p = _walk(returns, kinks, marks, count, w, h) if count else w
+                    if sloped:
+                        _add_kink(ground, z_ground * inv_h - ground_first, p)
+    return returns[:n_layers], volume, foliage, ground[:n_ground]
+
+
+_COMPILED = {}
+
+
+def _kernel():
+    """The compiled kernel: helpers are compiled first, so that the kernel calls them."""
+    if not _COMPILED:
+        from numba import njit
+
+        global _cone, _ellipsoid, _hemi_ellipsoid, _cylinder
+        global _extent, _transmission, _bin_lists, _add_kink, _sort_marks, _run, _walk
+        inline = njit(cache=True, inline="always")
+        _cone = inline(crown_shapes._cone_extent)
+        _ellipsoid = inline(crown_shapes._ellipsoid_extent)
+        _hemi_ellipsoid = inline(crown_shapes._hemi_ellipsoid_extent)
+        _cylinder = inline(crown_shapes._cylinder_extent)
+        _extent = inline(_extent)
+        _transmission = inline(_transmission)
+        _add_kink = inline(_add_kink)
+        _sort_marks = inline(_sort_marks)
+        _run = inline(_run)
+        _walk = inline(_walk)
+        _bin_lists = njit(cache=True)(_bin_lists)
+        _COMPILED["sums"] = njit(cache=True)(_footprint_sums)
+    return _COMPILED["sums"]
+
+
+def footprint_profiles(
+    grid: ColumnGrid,
+    crowns: CrownSet,
+    layers: LayerGrid,
+    slope=(0.0, 0.0),
+    ground_nodes=None,
+    bin_nodes=16,
+) -> FootprintSums:
+    """Compiled :func:`forward.column_kernel.footprint_profiles` (same arguments, same
+    results to rounding)."""
+    first, last = crown_node_ranges(grid, crowns)
+    top = layers.bottom + layers.n_layers * layers.thickness
+    sloped = ground_nodes is not None
+    ground_first, n_ground = ground_nodes if sloped else (0, 0)
+    f64 = np.ascontiguousarray
+    returns, volume, foliage, ground = _kernel()(
+        f64(grid.nodes, float), f64(grid.weights, float), float(grid.radius) ** 2,
+        first, last, int(bin_nodes),
+        *(f64(a, float) for a in (crowns.x, crowns.y, crowns.radius)),
+        f64(crowns.shape, np.int64),
+        *(f64(a, float) for a in (crowns.base, crowns.length, crowns.extinction, crowns.favd)),
+        float(top), float(layers.thickness), int(layers.n_layers),
+        float(slope[0]), float(slope[1]), sloped, int(ground_first), int(n_ground),
+    )  # fmt: skip
+    h, n_edges = layers.thickness, layers.n_layers + 1
+    volume, foliage = (layer_integral(k[:n_edges, None], h)[::-1, 0] for k in (volume, foliage))
+    return FootprintSums(returns[::-1].copy(), volume, foliage, ground if sloped else None)

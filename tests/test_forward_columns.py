@@ -1,0 +1,220 @@
+"""The grid-of-columns engine: compiled kernel against its numpy reference, and the
+engine against the brute-force reference model where crowns overlap."""
+
+import numpy as np
+import pytest
+
+import forward as fw
+from forward import column_kernel_numba
+from forward.column_grid import ColumnGrid
+from tests.reference_model import reference_waveform
+
+needs_numba = pytest.mark.skipif(not column_kernel_numba.AVAILABLE, reason="needs numba")
+
+
+def overlapping_stand(rng, n, half_width, radius=(1.5, 2.5), favd=1.5, shapes=fw.SHAPE_NAMES):
+    """``n`` crowns on a square of ±``half_width`` m: dense enough to overlap heavily."""
+    height = rng.uniform(8.0, 16.0, n)
+    return fw.Stand.from_arrays(
+        x=rng.uniform(-half_width, half_width, n),
+        y=rng.uniform(-half_width, half_width, n),
+        height=height,
+        crown_length=rng.uniform(0.4, 0.8, n) * height,
+        crown_radius=rng.uniform(*radius, n),
+        favd=favd,
+        shape=rng.choice(list(shapes), n),
+    )
+
+
+def slab_stand(rng, n, half_width, radius, favd):
+    """``n`` slab-like cylinders 0.5–3 m deep and ``radius`` (low, high) m wide."""
+    return fw.Stand.from_arrays(
+        x=rng.uniform(-half_width, half_width, n), y=rng.uniform(-half_width, half_width, n),
+        height=rng.uniform(5, 30, n), crown_length=rng.uniform(0.5, 3.0, n),
+        crown_radius=rng.uniform(*radius, n), favd=favd, shape="cylinder",
+    )  # fmt: skip
+
+
+def relative_l1(samples, reference):
+    return np.abs(samples - reference).sum() / reference.sum()
+
+
+SCENES = {
+    "overlap": dict(),
+    "hot spot k=2": dict(hotspot_k=2.0),
+    "slope": dict(ground=fw.Ground(0.3, slope_deg=25.0, aspect_deg=40.0)),
+    "understory": dict(understory=fw.UniformUnderstory(2.0, 1.2)),
+}
+
+
+@needs_numba
+@pytest.mark.parametrize("scene", SCENES)
+def test_compiled_kernel_equals_numpy_reference(scene, rng):
+    options = dict(SCENES[scene])
+    inst = fw.instrument_preset("gedi", hotspot_k=options.pop("hotspot_k", 1.0))
+    stand = overlapping_stand(rng, 150, 25.0)
+    runs = [
+        fw.WaveformSimulator(inst, fw.AccuracySettings(backend=backend)).simulate(
+            stand, center=(1.0, -2.0), **options
+        )
+        for backend in ("numba", "numpy")
+    ]
+    compiled, reference = runs
+    assert compiled.settings["backend"] == "numba"
+    assert reference.settings["backend"] == "numpy"
+    scale = reference.samples.max()
+    np.testing.assert_allclose(compiled.samples, reference.samples, rtol=0, atol=1e-13 * scale)
+    for name in ("gap", "crown_volume", "foliage_area"):
+        np.testing.assert_allclose(getattr(compiled, name), getattr(reference, name), atol=1e-13)
+    assert compiled.ground_gap == pytest.approx(reference.ground_gap, rel=1e-12, abs=1e-15)
+
+
+@needs_numba
+def test_compiled_kernel_handles_many_wide_crowns():
+    """A hundred and twenty slab-like crowns over every column (walked layer by layer,
+    not run by run) give the numpy reference's numbers."""
+    stand = slab_stand(np.random.default_rng(5), 120, 10.0, (15.0, 30.0), 0.05)
+    inst = fw.instrument_preset("gedi", footprint_sigma_m=2.0)
+    compiled, reference = (
+        fw.WaveformSimulator(inst, fw.AccuracySettings(backend=b)).simulate(stand)
+        for b in ("numba", "numpy")
+    )
+    np.testing.assert_allclose(compiled.samples, reference.samples, atol=1e-13)
+
+
+@pytest.mark.parametrize("scene", ["overlap", "hot spot k=2", "slope", "understory"])
+def test_engine_matches_reference_model_where_crowns_overlap(scene):
+    """About twenty crowns over a narrow beam, each overlapping several others."""
+    rng = np.random.default_rng(
+        {"overlap": 1, "hot spot k=2": 2, "slope": 3, "understory": 4}[scene]
+    )
+    options = dict(SCENES[scene])
+    inst = fw.instrument_preset(
+        "gedi", footprint_sigma_m=1.5, pulse_fwhm_ns=6.0, hotspot_k=options.pop("hotspot_k", 1.0)
+    )
+    stand = overlapping_stand(rng, 40, 7.0)
+    ground = options.get("ground", fw.Ground(0.3))
+    accuracy = fw.AccuracySettings(tolerance=3e-4, truncation_tolerance=1e-3)
+    wf = fw.WaveformSimulator(inst, accuracy).simulate(stand, **options)
+    expected, ground_gap = reference_waveform(
+        stand, inst, wf.heights, spacing=0.04, fine=0.01, tolerance=1e-3, ground=ground,
+        understory=options.get("understory"),
+    )  # fmt: skip
+    assert wf.ground_gap == pytest.approx(ground_gap, rel=1e-2)  # the reference: ±0.7 %
+    assert relative_l1(wf.samples, expected) < 4e-3
+
+
+def test_tighter_tolerance_converges_to_the_reference_model():
+    rng = np.random.default_rng(11)
+    inst = fw.instrument_preset("gedi", footprint_sigma_m=1.5, pulse_fwhm_ns=6.0, hotspot_k=2.0)
+    stand = overlapping_stand(rng, 40, 7.0, shapes=("cone",))
+    heights = fw.WaveformSimulator(inst).simulate(stand).heights
+    expected, _ = reference_waveform(stand, inst, heights, spacing=0.03, fine=0.01)
+    errors = [
+        relative_l1(
+            fw.WaveformSimulator(inst, tol).simulate(stand, heights=heights).samples, expected
+        )
+        for tol in (3e-2, 3e-3, 3e-4)
+    ]
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] < 2e-3
+
+
+def test_column_weights_are_the_truncated_footprint():
+    grid = ColumnGrid.build(5.5, 0.3, 1e-3)
+    x, y = np.meshgrid(grid.nodes, grid.nodes, indexing="ij")
+    inside = x**2 + y**2 <= grid.radius**2
+    omega = np.outer(grid.weights, grid.weights)[inside]
+    assert omega.sum() == pytest.approx(1.0, rel=1e-12)
+    assert grid.n_columns == inside.sum()
+    # second moment of the truncated Gaussian: σ²(1 − r²/(2σ²)·tol/(1 − tol))
+    r2 = x[inside] ** 2 + y[inside] ** 2
+    tol, sigma = 1e-3, 5.5
+    expected = 2 * sigma**2 * (1 - (grid.radius**2 / (2 * sigma**2)) * tol / (1 - tol))
+    assert (omega * r2).sum() == pytest.approx(expected, rel=2e-3)
+    # densest at the beam centre, spaced as asked there
+    steps = np.diff(grid.nodes)
+    assert steps.min() == pytest.approx(0.3, rel=0.05) and steps.max() > 2 * steps.min()
+
+
+@pytest.mark.parametrize("accuracy", [1e-3, "1e-3", fw.AccuracySettings(tolerance=1e-3)])
+def test_accuracy_may_be_given_as_a_tolerance(gedi, accuracy):
+    sim = fw.WaveformSimulator(gedi, accuracy)
+    assert sim.accuracy.tolerance == 1e-3 and sim.scheme == "columns"
+    assert sim.footprint_radius == pytest.approx(5.5 * np.sqrt(-2 * np.log(1e-4)))
+
+
+def test_node_counts_select_the_per_crown_quadrature(gedi):
+    sim = fw.WaveformSimulator(gedi, fw.AccuracySettings(radial_nodes=6, angular_nodes=12))
+    assert sim.scheme == "crowns" and sim.accuracy.footprint_tolerance == 1e-3
+    wf = sim.simulate(fw.Stand.from_arrays(x=[1.0], y=[0.0], height=[15.0], crown_length=[6.0],
+                                           crown_radius=[2.0], favd=0.5))  # fmt: skip
+    assert wf.settings["scheme"] == "crowns" and wf.settings["radial_nodes"] == 6
+
+
+@pytest.mark.parametrize(
+    "build, message",
+    [
+        (lambda: fw.AccuracySettings(tolerance=0.0), "tolerance"),
+        (lambda: fw.AccuracySettings(tolerance=0.7), "tolerance"),
+        (lambda: fw.AccuracySettings(column_spacing=-0.1), "column_spacing"),
+        (lambda: fw.AccuracySettings(backend="cuda"), "backend"),
+        (lambda: fw.WaveformSimulator(fw.instrument_preset("gedi"), "fine"), "tolerance"),
+    ],
+)
+def test_bad_accuracy_names_the_problem(build, message):
+    with pytest.raises(ValueError, match=message):
+        build()
+
+
+@pytest.mark.parametrize("preset", ["slicer", "lvis", "gedi"])
+def test_default_layers_keep_the_quarter_sigma_rule(preset):
+    """At the default tolerance the fine layers are those of earlier versions (≤ σz/4);
+    a tighter tolerance thins them as its square root."""
+    inst = fw.instrument_preset(preset)
+    sigma = inst.pulse.sigma_m
+    default = fw.WaveformSimulator(inst)
+    assert default.oversampling == max(1, int(np.ceil(4 * inst.bin_height / sigma - 1e-9)))
+    tight = fw.WaveformSimulator(inst, 1e-5)
+    assert tight.layer_height <= sigma * np.sqrt(25 * 1e-5) < default.layer_height
+
+
+def test_column_spacing_follows_the_tolerance():
+    accuracy = fw.AccuracySettings()
+    base = accuracy.column_spacing_for(5.5, 2.0)
+    tighter = fw.AccuracySettings(tolerance=accuracy.tolerance / 8).column_spacing_for(5.5, 2.0)
+    assert tighter == pytest.approx(base / 4)  # s ∝ tolerance^(2/3)
+    assert accuracy.column_spacing_for(5.5 * 8, 2.0) == pytest.approx(4 * base)  # ∝ σf^(2/3)
+    assert fw.AccuracySettings(column_spacing=0.4).column_spacing_for(5.5, 2.0) == 0.4
+
+
+def test_numpy_kernel_memory_does_not_grow_with_crown_size():
+    """Tiles bound the numpy reference's work arrays: 300 slabs 8–60 m wide over a 2 m
+    beam (which made the per-crown quadrature allocate 1.4 GB) stay within tens of MB."""
+    import tracemalloc
+
+    stand = slab_stand(np.random.default_rng(30), 300, 30.0, (4.0, 30.0), 0.2)
+    sim = fw.WaveformSimulator(
+        fw.instrument_preset("gedi", footprint_sigma_m=2.0), fw.AccuracySettings(backend="numpy")
+    )
+    prepared = sim.prepare(stand)
+    tracemalloc.start()
+    sim.simulate(prepared)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 100e6
+
+
+def test_footprints_under_few_crowns_get_closer_columns(gedi):
+    """Edge errors average over the crowns sharing the footprint: with fewer than
+    (σf/R)² of them the columns are closer (and few crowned columns cost little)."""
+    one = fw.Stand.from_arrays(x=[1.0], y=[0.0], height=[15.0], crown_length=[6.0],
+                               crown_radius=[2.0], favd=0.5)  # fmt: skip
+    sim = fw.WaveformSimulator(gedi)
+    crowns = sim.prepare(one).crowns_near(0.0, 0.0, sim.footprint_radius, fw.Ground())
+    assert crowns.effective_count(gedi.footprint_sigma_m) == pytest.approx(1.0)
+    many = overlapping_stand(np.random.default_rng(3), 600, 25.0, radius=(2.0, 2.0))
+    assert (
+        sim.simulate(one).settings["column_spacing_m"]
+        < 0.8 * sim.simulate(many).settings["column_spacing_m"]
+    )
