@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from lidarinv.inference.ar_noise import AutoregressiveNoise, levinson_durbin
+from lidarinv.inference.likelihood.ar_noise import AutoregressiveNoise, levinson_durbin
 from lidarinv.observe.noise import autocorrelation
 
 
@@ -67,7 +67,7 @@ def test_bad_autocorrelations_are_refused():
 def test_the_ar1_with_the_integrated_time_of_gedi_like_noise():
     """Its zero-frequency spectral density is the measured one: the variance of a long
     mean of the noise is the same under the model as in the data."""
-    from lidarinv.inference.ar_noise import integrated_time
+    from lidarinv.inference.likelihood.ar_noise import integrated_time
 
     rng = np.random.default_rng(4)
     kernel = np.exp(-0.5 * (np.arange(-8, 9) / 2.0) ** 2)
