@@ -188,14 +188,17 @@ def test_dask_local_cluster(tmp_path):
             with distributed.Client(cluster) as client:
                 summary = invert_many(obs, settings, output=tmp_path / "d.h5", executor=client,
                                       invert=fake_invert, rng=5, progress=False)  # fmt: skip
-    assert summary.n_done == 5 and list(summary.failed) == ["4"]
-    assert summary.failed["4"].startswith("worker lost (KilledWorker")
+    # the crash loses shot 4; a shot queued on the same worker may be lost with it (the
+    # scheduler allows no failures here), never anything else
+    assert summary.n_done + len(summary.failed) == 6 and summary.n_done >= 4
+    assert "4" in summary.failed
+    assert all(reason.startswith("worker lost (KilledWorker") for reason in summary.failed.values())
     with ThreadPoolExecutor(2) as pool:
         local = invert_many(obs, output=tmp_path / "t.h5", executor=pool, invert=fake_invert,
                             rng=5, progress=False)  # fmt: skip
-    expected = _medians(_csv(local.csv))
-    del expected["4"]
-    assert _medians(_csv(summary.csv)) == expected
+    expected = {k: v for k, v in _medians(_csv(local.csv)).items() if k not in summary.failed}
+    done = {k: v for k, v in _medians(_csv(summary.csv)).items() if k not in summary.failed}
+    assert done == expected
 
 
 def test_store_refuses_other_settings_and_redoes_half_written_shots(tmp_path):

@@ -142,3 +142,23 @@ def relative_heights_reference(signal, axis, ground, levels=(0.5, 0.98)) -> np.n
         if np.clip(row, 0.0, None).sum() > 0:
             out[r] = rh_metrics(row, axis, float(ground[r]), percentiles=percentiles)
     return out
+
+
+def dense_log_likelihood(
+    samples, signal, gain, baseline, noise_sigma, correlation, covariance=None
+):
+    """Reference log-likelihood of rows of model waveforms under correlated noise: the
+    multivariate normal N(b + a·W, σn²·Σ + C) with Σ the noise's dense Toeplitz
+    correlation matrix (bins × bins) and C a discrepancy covariance (DN²), by scipy."""
+    from scipy.stats import multivariate_normal
+
+    bins = samples.size
+    out = np.empty(signal.shape[0])
+    for r in range(signal.shape[0]):
+        cov = noise_sigma[r] ** 2 * correlation
+        if covariance is not None:
+            cov = cov + covariance
+        mean = baseline[r] + gain[r] * signal[r]
+        out[r] = multivariate_normal(mean, cov).logpdf(samples)
+    assert correlation.shape == (bins, bins)
+    return out

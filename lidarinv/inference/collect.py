@@ -87,6 +87,13 @@ def replicate_observation(like, signal, values, rng) -> np.ndarray:
     return draws
 
 
+def _likelihood_flags(like) -> list:
+    """Where the likelihood had to simplify the shot's noise, what it did."""
+    if like.correlation_obstacle is None:
+        return []
+    return [f"read noise taken as white: {like.correlation_obstacle}"]
+
+
 def _flat(array, run: SamplerRun):
     return array[run.burn :: run.thin].reshape(-1, *array.shape[2:])
 
@@ -162,7 +169,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             "seconds": dict(run.seconds),
             "tau_history": [[int(i), t] for i, t in run.tau_history],
         },
-        flags=list(run.flags),
+        flags=list(run.flags) + _likelihood_flags(post.likelihood),
         profile_heights=profile_heights,
         profile=np.percentile(profile, QUANTILES, axis=0),
         axis=problem.window.axis,

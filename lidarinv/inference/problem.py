@@ -176,6 +176,7 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
         settings.discrepancy,
         fixed,
         gain.prior if gain.marginalised else None,
+        shot.noise_correlation() if settings.correlated_noise else None,
     )
     favd_range = (0.0, np.inf) if settings.favd_range is None else settings.favd_range
     post = LogPosterior(space, ShotModel(mapping, expected), likelihood, favd_range)

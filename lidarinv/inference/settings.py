@@ -76,6 +76,10 @@ class InversionSettings:
     processing : lidarinv.observe.ProcessingSettings or None
         How the shot is analysed (noise, signal extent, ground); None for the defaults of
         its instrument, the same as ``lidarinv metrics`` uses.
+    correlated_noise : bool
+        The likelihood takes the read noise as correlated from bin to bin: an AR(1) with
+        the integrated autocorrelation time measured on the shot's signal-free bins
+        (:mod:`.likelihood.ar_noise`); white noise overstates what the samples say.
     marginalise_gain : bool
         Integrate the gain out of the likelihood analytically (:mod:`.likelihood.marginal`) where
         that is exact: no shot noise, a discrepancy fixed by the observation (not
@@ -147,6 +151,7 @@ class InversionSettings:
     instrument: str | None = None
     use_measured_pulse: bool = True
     processing: ProcessingSettings | None = None
+    correlated_noise: bool = True
     marginalise_gain: bool = True
     sample_noise: bool = True
     ground_prior_sd_m: float | None = None

@@ -17,6 +17,8 @@ from lidarinv.observe.analyse import analyse
 from lidarinv.observe.instrument import shot_instrument
 from lidarinv.observe.observation import Observation
 
+from .likelihood.ar_noise import AutoregressiveNoise
+
 
 @dataclass(frozen=True)
 class WindowData:
@@ -178,6 +180,20 @@ class Shot:
     def noise_sigma(self) -> float:
         """The noise σ̂ (DN) of the analysis."""
         return float(self.analysis.noise_sigma)
+
+    def noise_correlation(self):
+        """The read noise's correlation as the AR(1) with its measured integrated
+        autocorrelation time (:mod:`.likelihood.ar_noise`); white where the noise came
+        from the file's fields (they hold no autocorrelation).
+
+        Returns
+        -------
+        AutoregressiveNoise
+        """
+        noise = self.analysis.noise
+        if noise is None or noise.source != "samples":
+            return AutoregressiveNoise.white()
+        return AutoregressiveNoise.matching_integrated_time(noise.autocorrelation)
 
     def nuisance_priors(self, ground_prior_sd_m=None, top_range=(1.0, 80.0)) -> dict:
         """The shot's priors on the observation model and on the top height.

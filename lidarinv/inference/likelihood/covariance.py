@@ -70,13 +70,16 @@ class Rotation:
     unit: np.ndarray
 
     @classmethod
-    def of(cls, covariance, data: WindowData) -> "Rotation":
+    def of(cls, covariance, data: WindowData, unit=None) -> "Rotation":
         """The rotation of a discrepancy covariance over a window.
 
         Parameters
         ----------
         covariance : array (bins, bins) (DN²)
         data : WindowData
+        unit : array (bins,), optional
+            The baseline's pattern over the window's bins, ones by default (the whitened
+            ones where correlated noise was whitened first, :mod:`.ar_noise`).
 
         Returns
         -------
@@ -118,7 +121,8 @@ class Rotation:
             censored=np.zeros(bins, bool),
             saturated=np.zeros(bins, bool),
         )
-        unit = np.concatenate([np.ones(kept.size), np.ones(rotated.size) @ basis])
+        unit = np.ones(bins) if unit is None else np.asarray(unit, float)
+        unit = np.concatenate([unit[kept], unit[rotated] @ basis])
         variances = np.concatenate([np.zeros(kept.size), np.clip(variances, 0.0, None)])
         return cls(kept, rotated, basis, variances, flat, unit)
 

@@ -40,19 +40,27 @@ class ShotLikelihood:
         If given, the gain is integrated out against it (:mod:`.marginal`); that needs a
         variance independent of the gain and no censored or saturated bins, and a
         ValueError says which is missing.
+    noise_correlation : AutoregressiveNoise, optional
+        Correlated read noise, of covariance σn²·Σ (:mod:`.ar_noise`). The samples, the
+        model rows and the baseline's pattern are whitened by L⁻¹ (Σ = LLᵀ) and a fixed
+        discrepancy becomes the covariance L⁻¹CL⁻ᵀ; where that is impossible (censored
+        or saturated bins, shot noise, a discrepancy proportional to each row's model)
+        the noise is taken as white and :attr:`correlation_obstacle` says why.
 
     Notes
     -----
     log L = Σ_j log N(y_j; b + a·W_j, σn² + g·a·W_j + (η·a·W_j)² + v_j) over exact bins,
     with censored and saturated bins as in :func:`row_log_likelihood`; with a covariance
-    C = QΛQᵀ, the supported bins rotated by Qᵀ carry the variances σn² + Λ.
+    C = QΛQᵀ, the supported bins rotated by Qᵀ carry the variances σn² + Λ. With correlated
+    noise, log L = log N(L⁻¹y; b·L⁻¹1 + a·L⁻¹W, σn²·I + L⁻¹CL⁻ᵀ) − ½·log det Σ.
     """
 
     def __init__(self, data, shot_factor=0.0, discrepancy=0.0, fixed_discrepancy=None,
-                 gain_prior=None):  # fmt: skip
+                 gain_prior=None, noise_correlation=None):  # fmt: skip
         self.data = data
         self.shot_factor, self.discrepancy = float(shot_factor), float(discrepancy)
         self.gain_prior = gain_prior
+        self.noise_correlation = noise_correlation
         self.rotation = None
         if fixed_discrepancy is not None:
             fixed_discrepancy = np.asarray(fixed_discrepancy, float)
@@ -60,27 +68,61 @@ class ShotLikelihood:
                 obstacle = covariance_obstacle(data, self.shot_factor)
                 if obstacle is not None:
                     raise ValueError(f"a discrepancy covariance cannot be used: {obstacle}")
-                self.rotation = Rotation.of(fixed_discrepancy, data)
             else:
                 good = np.all(np.isfinite(fixed_discrepancy) & (fixed_discrepancy >= 0))
                 if fixed_discrepancy.shape != data.axis.shape or not good:
                     raise ValueError("fixed_discrepancy must be finite, ≥ 0 and one per window bin")
         self.fixed_discrepancy = fixed_discrepancy
-        if self.rotation is not None:
-            self._fixed_variance = self.rotation.variances
-        elif fixed_discrepancy is None:
-            self._fixed_variance = np.zeros(data.axis.size)
-        else:
-            self._fixed_variance = fixed_discrepancy
         # η of a discrepancy proportional to each row's model: none when the observation
         # fixes the discrepancy
         self.discrepancy_scale = self.discrepancy if fixed_discrepancy is None else 0.0
+        self.whitening, self.correlation_obstacle = None, None
+        if noise_correlation is not None and noise_correlation.order > 0:
+            self.correlation_obstacle = correlation_obstacle(
+                data, self.shot_factor, self.discrepancy_scale
+            )
+            if self.correlation_obstacle is None:
+                self.whitening = noise_correlation
+        self._basis_data, self._unit, self._log_det_term = data, None, 0.0
+        if self.whitening is not None:
+            self._whiten_window(fixed_discrepancy)
+        elif fixed_discrepancy is not None and fixed_discrepancy.ndim == 2:
+            self.rotation = Rotation.of(fixed_discrepancy, data)
+            self._basis_data, self._unit = self.rotation.data, self.rotation.unit
+        if self.rotation is not None:
+            self._fixed_variance = self.rotation.variances
+        elif fixed_discrepancy is None or self.whitening is not None:
+            self._fixed_variance = np.zeros(data.axis.size)
+        else:
+            self._fixed_variance = fixed_discrepancy
         self.gain_marginal = None
         if gain_prior is not None:
             obstacle = gain_marginal_obstacle(data, self.shot_factor, self.discrepancy_scale)
             if obstacle is not None:
                 raise ValueError(f"the gain cannot be marginalised: {obstacle}")
             self.gain_marginal = GainMarginal(gain_prior)
+
+    def _whiten_window(self, fixed_discrepancy) -> None:
+        """The window, the baseline's pattern and the discrepancy in the whitened basis."""
+        whiten, data = self.whitening.whiten, self.data
+        bins = data.axis.size
+        white = WindowData(
+            axis=data.axis,
+            samples=whiten(data.samples),
+            censored=np.zeros(bins, bool),
+            saturated=np.zeros(bins, bool),
+        )
+        unit = whiten(np.ones(bins))
+        self._log_det_term = -0.5 * self.whitening.log_det(bins)
+        self._basis_data, self._unit = white, unit
+        if fixed_discrepancy is None:
+            return
+        covariance = fixed_discrepancy
+        if covariance.ndim == 1:
+            covariance = np.diag(covariance)
+        whitened = whiten(whiten(covariance).T)  # L⁻¹ C L⁻ᵀ
+        self.rotation = Rotation.of(0.5 * (whitened + whitened.T), white, unit)
+        self._basis_data, self._unit = self.rotation.data, self.rotation.unit
 
     def with_fixed_discrepancy(self, fixed_discrepancy) -> "ShotLikelihood":
         """The same likelihood with another fixed discrepancy.
@@ -95,8 +137,9 @@ class ShotLikelihood:
         ShotLikelihood
         """
         return ShotLikelihood(
-            self.data, self.shot_factor, self.discrepancy, fixed_discrepancy, self.gain_prior
-        )
+            self.data, self.shot_factor, self.discrepancy, fixed_discrepancy, self.gain_prior,
+            self.noise_correlation,
+        )  # fmt: skip
 
     def log_likelihood(self, signal, values):
         """Log-likelihood of rows of model waveforms.
@@ -115,20 +158,21 @@ class ShotLikelihood:
         gain_fit : array (n, 4) or None
             Where the gain is integrated out, each row's :func:`.marginal.linear_fit`.
         """
-        data, unit = self.data, None
+        data, unit = self._basis_data, self._unit
+        if self.whitening is not None:
+            signal = self.whitening.whiten(signal)
         if self.rotation is not None:
             signal = self.rotation.rotate(signal)
-            data, unit = self.rotation.data, self.rotation.unit
         if self.gain_marginal is None:
             like = row_log_likelihood(
                 data, signal, values["gain"], values["baseline"], values["noise_sigma"],
                 self.shot_factor, self.discrepancy_scale, self._fixed_variance, unit,
             )  # fmt: skip
-            return like, None
+            return like + self._log_det_term, None
         fit = linear_fit(
             signal, values["baseline"], values["noise_sigma"], self._fixed_variance, data, unit
         )
-        return self.gain_marginal.log_likelihood(fit), fit
+        return self.gain_marginal.log_likelihood(fit) + self._log_det_term, fit
 
     def draw_gain(self, fit, rng) -> np.ndarray:
         """Gains drawn from p(a | θ, y), one per row.
@@ -147,6 +191,13 @@ class ShotLikelihood:
         gain = np.full(fit.shape[0], np.nan)
         gain[good] = self.gain_marginal.draw(fit[good], rng)
         return gain
+
+
+def correlation_obstacle(data: WindowData, shot_factor, discrepancy_scale) -> str | None:
+    """Why correlated noise cannot be whitened in this likelihood, or None if it can."""
+    if discrepancy_scale > 0:
+        return "the discrepancy is proportional to each row's model"
+    return covariance_obstacle(data, shot_factor)
 
 
 def row_log_likelihood(
