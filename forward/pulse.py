@@ -282,3 +282,45 @@ def layer_kernel(pulse, bin_height, oversampling, tolerance):
     d = (np.arange(q_min, q_max + 1) + shift) * h
     taps = bin_height / h * (pulse.cdf(d + h / 2) - pulse.cdf(d - h / 2))
     return q_min, taps
+
+
+def broaden(samples, bin_height: float, sigma_m) -> np.ndarray:
+    """Waveforms convolved with a Gaussian: the pulse widened by the receiver's response
+    or by the terrain's slope and roughness within the footprint.
+
+    Parameters
+    ----------
+    samples : array (n, bins)
+        Waveforms on an even height axis (a sample per bin).
+    bin_height : float (m)
+        Δz.
+    sigma_m : float or array (n,) (m)
+        σ of the Gaussian, per row (0: unchanged).
+
+    Returns
+    -------
+    array (n, bins)
+        Each row convolved with N(0, σ²), by FFT over the rows padded with zeros beyond
+        the window (the waveform is taken as zero outside it); each row's sum is kept
+        where its return lies well inside the window.
+
+    Notes
+    -----
+    The Gaussian's transfer function is exp(−ω²σ²/2), ω the angular frequency (1/m): the
+    convolution of the band-limited sampled waveform is exact.
+    """
+    samples = np.asarray(samples, float)
+    if samples.ndim != 2:
+        raise ValueError("broaden needs waveforms as rows (n, bins)")
+    n, bins = samples.shape
+    sigma = np.broadcast_to(np.asarray(sigma_m, float), (n,))
+    if np.any(~np.isfinite(sigma) | (sigma < 0)):
+        raise ValueError("broadening σ must be finite and ≥ 0")
+    if not np.any(sigma > 0):
+        return samples.copy()
+    pad = int(np.ceil(5.0 * sigma.max() / bin_height))
+    size = 1 << int(np.ceil(np.log2(bins + 2 * pad)))
+    spectrum = np.fft.rfft(samples, n=size, axis=1)
+    omega = 2.0 * np.pi * np.fft.rfftfreq(size, d=bin_height)
+    spectrum *= np.exp(-0.5 * (omega[None, :] * sigma[:, None]) ** 2)
+    return np.fft.irfft(spectrum, n=size, axis=1)[:, :bins]

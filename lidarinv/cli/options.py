@@ -53,7 +53,7 @@ def add_inversion_options(parser) -> None:
     )
 
 
-def inversion_settings(args):
+def inversion_settings(args, measured_pulse: bool = True):
     """``InversionSettings`` from ``--priors``, ``--instrument``, ``--max-steps`` and
     ``--walkers`` (checked against the free parameters before any sampling)."""
     from lidarinv.inference import InversionSettings
@@ -70,14 +70,16 @@ def inversion_settings(args):
         sampler = replace(sampler, max_steps=args.max_steps)
     if args.walkers is not None:
         sampler = replace(sampler, n_walkers=args.walkers)
-        check_walkers(settings, args.walkers)
+        check_walkers(settings, args.walkers, measured_pulse)
     return replace(settings, sampler=sampler)
 
 
-def sampled_dimensions(settings) -> int:
+def sampled_dimensions(settings, measured_pulse: bool = True) -> int:
     """Number of coordinates the sampler moves for ``settings`` on a shot whose gain can
     be integrated out (every bin exactly recorded): the parameter space of
-    :func:`lidarinv.inference.default_space` with the settings' priors."""
+    :func:`lidarinv.inference.default_space` with the settings' priors. With
+    ``measured_pulse`` (the shot carries its transmitted waveform, as GEDI and LVIS files
+    do) the pulse's broadening is sampled too."""
     from lidarinv.inference import default_space
     from lidarinv.inference.model.priors import Uniform
 
@@ -92,15 +94,17 @@ def sampled_dimensions(settings) -> int:
     placeholder = Uniform(0.0, 1.0)
     nuisance = {name: placeholder for name in ("ground_elevation", "baseline")}
     nuisance.update(gain=Uniform(1.0, 2.0), noise_sigma=Uniform(1.0, 2.0))
+    if measured_pulse and settings.use_measured_pulse:
+        nuisance["pulse_broadening"] = placeholder
     space = default_space(
         nuisance, overrides, settings.ridges, settings.unbounded, settings.tallest_stem
     )
     return space.ndim
 
 
-def check_walkers(settings, walkers: int) -> None:
+def check_walkers(settings, walkers: int, measured_pulse: bool = True) -> None:
     """``walkers`` is at least the ensemble's minimum, 2 × sampled coordinates + 2."""
-    ndim = sampled_dimensions(settings)
+    ndim = sampled_dimensions(settings, measured_pulse)
     least = 2 * ndim + 2
     if walkers < least:
         raise ValueError(

@@ -18,11 +18,11 @@ from .model.priors import Uniform
 from .model.space import ParameterSpace
 from .model.stand import DERIVED
 from .model.tallest_stem import TALLEST_STEM, TALLEST_STEM_LATENTS
-from .model.waveform import RH_LEVELS, ShotModel
+from .model.waveform import WAVEFORM_QUANTITIES, ShotModel
 
 #: Blob columns after the log-probability: model-waveform RH metrics, then DERIVED.
-BLOB_NAMES = (*RH_LEVELS, *DERIVED)
-BLOB_UNITS = {**dict.fromkeys(RH_LEVELS, "m"), **DERIVED}
+BLOB_NAMES = (*WAVEFORM_QUANTITIES, *DERIVED)
+BLOB_UNITS = {**WAVEFORM_QUANTITIES, **DERIVED}
 
 
 @dataclass

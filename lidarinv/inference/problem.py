@@ -15,7 +15,7 @@ from forward.expected import ExpectedWaveformModel
 from lidarinv.observe.observation import Observation
 
 from .likelihood.discrepancy import DISCREPANCY_MODELS
-from .likelihood.gaussian import ShotLikelihood
+from .likelihood.gaussian import ShotLikelihood, correlation_obstacle
 from .likelihood.marginal import gain_marginal_obstacle
 from .model.parameters import DEFAULT_STRUCTURE_PRIORS, default_space
 from .model.stand import StandMapping, default_template
@@ -148,8 +148,18 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
     """
     top = DEFAULT_STRUCTURE_PRIORS["top_height"]
     nuisance = shot.nuisance_priors(settings.ground_prior_sd_m, (top.lower, top.upper))
-    overrides = {**shot.noise_overrides(settings.sample_noise), **settings.priors}
+    correlation = shot.noise_correlation() if settings.correlated_noise else None
     fixed = fixed_discrepancy(shot, settings)
+    # under whitened correlated noise a sampled σn would fit the whitened residuals, not
+    # the noise's marginal σ that the whitening assumes: the noise is held at its estimate
+    correlated = correlation is not None and correlation.order > 0
+    if correlated:
+        scale = settings.discrepancy if fixed is None else 0.0
+        correlated = correlation_obstacle(shot.window, settings.shot_factor, scale) is None
+    overrides = {
+        **shot.noise_overrides(settings.sample_noise and not correlated),
+        **settings.priors,
+    }
     if settings.marginalise_gain and overrides.get("gain", {}).get("fixed") is None:
         scale = settings.discrepancy if fixed is None else 0.0
         if gain_marginal_obstacle(shot.window, settings.shot_factor, scale) is None:
@@ -176,7 +186,7 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
         settings.discrepancy,
         fixed,
         gain.prior if gain.marginalised else None,
-        shot.noise_correlation() if settings.correlated_noise else None,
+        correlation,
     )
     favd_range = (0.0, np.inf) if settings.favd_range is None else settings.favd_range
     post = LogPosterior(space, ShotModel(mapping, expected), likelihood, favd_range)

@@ -105,7 +105,8 @@ def realisation_residuals(
             position = np.where(np.isnan(found[:, 1]), 0.5, found[:, 1])
             x[:, names.index(TALLEST_STEM_POSITION)] = position
         terms = post.evaluate(x, keep_signal=True)
-    gain = post.space.values(x)["gain"] if terms.gain_fit is None else terms.gain_fit[:, 1]
+    values = post.space.values(x)
+    gain = values["gain"] if terms.gain_fit is None else terms.gain_fit[:, 1]
     simulator = WaveformSimulator(instrument, accuracy)
     axis = post.data.axis
     residuals = np.empty((x.shape[0], axis.size))
@@ -113,7 +114,8 @@ def realisation_residuals(
         ground, understory, rho_v = scene_extras(params)
         heights = axis - row[FIELD_INDEX["ground_elevation"]]
         explicit = simulator.simulate(stand, centre, heights, ground, rho_v, understory).samples
-        residuals[i] = gain[i] * (explicit - terms.signal[i])
+        explicit = post.model.widen(explicit[None, :], {k: v[i : i + 1] for k, v in values.items()})
+        residuals[i] = gain[i] * (explicit[0] - terms.signal[i])
     return residuals
 
 

@@ -79,7 +79,8 @@ class InversionSettings:
     correlated_noise : bool
         The likelihood takes the read noise as correlated from bin to bin: an AR(1) with
         the integrated autocorrelation time measured on the shot's signal-free bins
-        (:mod:`.likelihood.ar_noise`); white noise overstates what the samples say.
+        (:mod:`.likelihood.ar_noise`); white noise overstates what the samples say. The
+        noise mean and σ are then held at their estimates (see ``sample_noise``).
     marginalise_gain : bool
         Integrate the gain out of the likelihood analytically (:mod:`.likelihood.marginal`) where
         that is exact: no shot noise, a discrepancy fixed by the observation (not
@@ -88,7 +89,8 @@ class InversionSettings:
         posterior sample's gain is drawn from its conditional density. Otherwise, or if
         False, the gain is sampled.
     sample_noise : bool
-        Sample the baseline and noise σ; if False, hold them at the shot's estimates from
+        Sample the baseline and noise σ where the noise is taken as white (under
+        correlated noise they are held); if False, hold them at the shot's estimates from
         the signal-free bins (two fewer free parameters; a GEDI window has hundreds of such
         bins, so the estimates are far tighter than anything else in the posterior). A
         priors-file entry for either still takes precedence.

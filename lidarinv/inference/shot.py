@@ -14,10 +14,14 @@ import numpy as np
 
 from forward.instrument import Instrument
 from lidarinv.observe.analyse import analyse
+from lidarinv.observe.ground_return import fit_ground_return, registered_ground
 from lidarinv.observe.instrument import shot_instrument
 from lidarinv.observe.observation import Observation
 
-from .likelihood.ar_noise import AutoregressiveNoise
+from .likelihood.ar_noise import AutoregressiveNoise, integrated_time
+
+#: The pulse broadening's prior: its sd (m) about the lower flank's fit, and its upper end.
+BROADENING_PRIOR_SD_M, BROADENING_UPPER_M = 0.25, 4.0
 
 
 @dataclass(frozen=True)
@@ -115,6 +119,17 @@ class Shot:
         The bins the likelihood reads.
     pulse_range : (float, float) (m)
         Offsets below and above which 1e-3 of the pulse lies.
+    ground : float (m)
+        The detected ground in the model's registration (the pulse's peak on the
+        ground): the lowest mode of the smoothed waveform, moved by where the broadened
+        and smoothed pulse peaks (:func:`lidarinv.observe.ground_return.registered_ground`).
+    broadening : float (m)
+        σ of the Gaussian that widens the shot's transmitted waveform, fitted to the
+        ground return's lower flank (:func:`lidarinv.observe.ground_return.
+        fit_ground_return`); 0 where the shot has no transmitted waveform (a preset
+        pulse is the instrument's whole response).
+    has_transmitted_pulse : bool
+        The shot's own transmitted waveform is its pulse (then the broadening is sampled).
     """
 
     observation: Observation
@@ -122,6 +137,9 @@ class Shot:
     analysis: object
     window: WindowData
     pulse_range: tuple
+    ground: float = np.nan
+    broadening: float = 0.0
+    has_transmitted_pulse: bool = False
 
     @classmethod
     def from_observation(cls, obs: Observation, settings) -> "Shot":
@@ -156,12 +174,23 @@ class Shot:
         instrument = shot_instrument(
             obs, settings.instrument, measured_pulse=settings.use_measured_pulse
         )
-        pulse_low, pulse_high = pulse_quantiles(instrument.pulse, 1e-3)
         analysis = analyse(obs, settings.processing, instrument=instrument, metrics=False)
         if not analysis.ok:
             raise ValueError(f"shot {obs.shot_id}: {analysis.status}: {analysis.reason}")
-        bottom = min(analysis.signal_end, analysis.ground + pulse_low) - settings.margin_below_m
-        height = analysis.signal_start - analysis.ground
+        broadening = 0.0
+        if settings.use_measured_pulse and obs.pulse is not None:
+            # the transmitted waveform is not the whole response: the ground return's lower
+            # flank says how much wider the effective pulse is
+            noise = analysis.noise
+            broadening = fit_ground_return(
+                obs.samples, obs.axis, noise.mean, noise.sigma, instrument.pulse,
+                analysis.ground, integrated_time(noise.autocorrelation),
+            ).broadening  # fmt: skip
+        smoothing_m = analysis.smoothing_bins * obs.bin_size
+        ground = registered_ground(analysis.ground, instrument.pulse, broadening, smoothing_m)
+        pulse_low, pulse_high = pulse_quantiles(instrument.pulse, 1e-3)
+        bottom = min(analysis.signal_end, ground + pulse_low) - settings.margin_below_m
+        height = analysis.signal_start - ground
         top = analysis.signal_start + max(settings.margin_above_m, 0.5 * height)
         lo = max(int(np.searchsorted(obs.axis, bottom, side="left")), 0)
         hi = min(int(np.searchsorted(obs.axis, top, side="right")), obs.n_bins)
@@ -169,7 +198,11 @@ class Shot:
         energy = float(np.sum(np.clip(window.samples - analysis.noise_mean, 0.0, None)))
         if not energy > 0:
             raise ValueError(f"shot {obs.shot_id}: no energy above the noise mean in the window")
-        return cls(obs, instrument, analysis, window, (pulse_low, pulse_high))
+        measured = settings.use_measured_pulse and obs.pulse is not None
+        return cls(
+            obs, instrument, analysis, window, (pulse_low, pulse_high), ground, broadening,
+            measured,
+        )  # fmt: skip
 
     @property
     def noise_mean(self) -> float:
@@ -225,7 +258,7 @@ class Shot:
         b, sigma = self.noise_mean, self.noise_sigma
         energy = float(np.sum(np.clip(window.samples - b, 0.0, None)))
         pulse_low, pulse_high = self.pulse_range
-        g, g_sd = a.ground, ground_prior_sd_m
+        g, g_sd = self.ground, ground_prior_sd_m
         if g_sd is None:
             g_sd = max(float(a.ground_uncertainty), self.observation.bin_size)
         if not (np.isfinite(g_sd) and g_sd > 0):
@@ -243,7 +276,27 @@ class Shot:
             "baseline": Uniform(b - 5.0 * sigma, b + 5.0 * sigma),
             "noise_sigma": LogUniform(sigma / 3.0, sigma * 3.0),
             "top_height": Uniform(top_range[0], min(top_range[1], room)),
+            **self.broadening_prior(),
         }
+
+    def broadening_prior(self) -> dict:
+        """The prior of the pulse's broadening where the shot has its transmitted
+        waveform: N(fit, 0.25²) truncated to [0, 4] m, the lower flank's fit give or take
+        a quarter metre (the flank alone cannot tell a wider return from low vegetation
+        just above the ground); none otherwise (held at 0).
+
+        Returns
+        -------
+        dict
+            ``{"pulse_broadening": prior}`` or ``{}``.
+        """
+        from .model.priors import TruncatedNormal
+
+        if not self.has_transmitted_pulse:
+            return {}
+        upper = BROADENING_UPPER_M
+        centre = min(self.broadening, upper)
+        return {"pulse_broadening": TruncatedNormal(centre, BROADENING_PRIOR_SD_M, 0.0, upper)}
 
     def noise_overrides(self, sample_noise=True) -> dict:
         """The noise mean and σ held at the shot's estimates where they are not sampled.

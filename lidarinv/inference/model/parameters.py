@@ -43,6 +43,10 @@ NUISANCE = {
     "baseline": ("DN", "noise mean"),
     "noise_sigma": ("DN", "noise standard deviation"),
     "rho_ratio": ("1", "canopy over ground reflectance ρv/ρg"),
+    "pulse_broadening": (
+        "m",
+        "σ of the Gaussian that widens the transmitted pulse (receiver, terrain slope, roughness)",
+    ),
 }
 
 #: Latent parameters, in the space only where the settings ask: name → (units, description).
@@ -100,7 +104,8 @@ def default_space(
     Parameters
     ----------
     nuisance_priors : dict
-        Priors for every name in :data:`NUISANCE` except ``rho_ratio`` (optional).
+        Priors for every name in :data:`NUISANCE` except ``rho_ratio`` (optional) and
+        ``pulse_broadening`` (held at 0 when not given).
     overrides : dict, optional
         ``{name: {"prior": prior, "fixed": value or None}}``, e.g. from a priors file.
     ridges : tuple of str
@@ -122,11 +127,14 @@ def default_space(
     ParameterSpace
     """
     priors = {**DEFAULT_STRUCTURE_PRIORS, "rho_ratio": DEFAULT_RHO_RATIO_PRIOR, **nuisance_priors}
+    fixed = dict(DEFAULT_FIXED)
+    if "pulse_broadening" not in nuisance_priors:  # a preset pulse: the whole response
+        priors["pulse_broadening"], fixed["pulse_broadening"] = Uniform(0.0, 1.0), 0.0
     params = []
     for name, (units, description) in {**STRUCTURE, **NUISANCE}.items():
         if name not in priors:
             raise ValueError(f"no prior given for {name}")
-        params.append(Parameter(name, units, priors[name], DEFAULT_FIXED.get(name), description))
+        params.append(Parameter(name, units, priors[name], fixed.get(name), description))
     if tallest_stem:
         top = {**{"prior": priors["top_height"]}, **(overrides or {}).get("top_height", {})}
         highest = max(top["prior"].form().upper, top.get("fixed") or 0.0)

@@ -12,11 +12,20 @@ from typing import NamedTuple
 import numpy as np
 
 from forward.backends import jit
+from forward.pulse import broaden
 
 from .stand import StandMapping
 
 #: RH levels reported per posterior sample, by name.
 RH_LEVELS = {"rh50": 0.5, "rh98": 0.98}
+
+#: Quantities of the model waveform reported per posterior sample: name → units. The RH
+#: levels, and the tree canopy's gap-probability cover, the quantity GEDI L2B's
+#: ``cover`` estimates: 1 − E[P(0)]/P_u, the footprint-weighted gap through the tree
+#: crowns down to the top of the understory (P_u = exp(−k·G·Ω·LAI_u), the uniform
+#: understory's own gap; a return from within a pulse width of the ground, as the
+#: understory's is, counts as ground in a gap-probability retrieval).
+WAVEFORM_QUANTITIES = {**dict.fromkeys(RH_LEVELS, "m"), "gap_cover": "1"}
 
 _LEVELS = np.array(list(RH_LEVELS.values()))
 
@@ -32,8 +41,9 @@ class ModelRows(NamedTuple):
     valid : array of bool (n,)
         Rows the expected model takes as physical stands.
     derived : dict
-        Per-row derived quantities (:meth:`.stand.StandMapping.model_vectors`, and the
-        RH of :data:`RH_LEVELS`, m above the row's ground).
+        Per-row derived quantities (:meth:`.stand.StandMapping.model_vectors`, and
+        :data:`WAVEFORM_QUANTITIES`: the RH of :data:`RH_LEVELS`, m above the row's
+        ground, and the gap cover).
     """
 
     signal: np.ndarray
@@ -74,8 +84,28 @@ class ShotModel:
         """
         return self.mapping.valid(values)
 
+    def widen(self, samples, values) -> np.ndarray:
+        """Waveforms widened by each row's ``pulse_broadening`` (m), where it is not zero
+        (:func:`forward.pulse.broaden`): the transmitted pulse made the shot's effective
+        pulse.
+
+        Parameters
+        ----------
+        samples : array (n, bins)
+        values : dict
+
+        Returns
+        -------
+        array (n, bins)
+        """
+        width = values.get("pulse_broadening")
+        if width is None or not np.any(np.asarray(width) > 0):
+            return samples
+        return broaden(samples, self.expected.instrument.bin_height, width)
+
     def evaluate(self, values) -> ModelRows:
-        """Expected waveforms and derived quantities of parameter rows.
+        """Expected waveforms and derived quantities of parameter rows, the waveforms
+        widened by :meth:`widen`.
 
         Parameters
         ----------
@@ -88,10 +118,15 @@ class ShotModel:
         """
         vectors, derived = self.mapping.model_vectors(values)
         result = self.expected.evaluate(vectors)
-        heights = relative_heights(result.samples, self.axis, values["ground_elevation"], _LEVELS)
+        samples = self.widen(result.samples, values)
+        heights = relative_heights(samples, self.axis, values["ground_elevation"], _LEVELS)
         for i, name in enumerate(RH_LEVELS):
             derived[name] = heights[:, i]
-        return ModelRows(result.samples, result.valid, derived)
+        understory_gap = np.exp(
+            -self.expected.instrument.extinction_per_favd * values.get("understory_lai", 0.0)
+        )
+        derived["gap_cover"] = 1.0 - result.gap_ground / understory_gap
+        return ModelRows(samples, result.valid, derived)
 
 
 @jit
