@@ -12,7 +12,7 @@ and ``predictive_*.png`` (typical, worst and multi-layer shots).
     python studies/real_inversion.py [--data ../shared/data/real | examples]
                                      [--instrument gedi lvis] [--max-shots N]
                                      [--max-steps 20000] [--workers 1] [--seed 1]
-                                     [--tag _NAME]
+                                     [--priors FILE] [--tag _NAME]
 """
 
 import argparse
@@ -63,12 +63,12 @@ def products(files) -> dict:
 
 def invert_one(job):
     """One shot: its posterior summary against the product, or why it failed."""
-    obs, product, max_steps, seed = job
+    obs, product, max_steps, seed, priors = job
     from dataclasses import replace
 
     from lidarinv.inference import InversionSettings, invert_shot
 
-    settings = InversionSettings()
+    settings = InversionSettings() if priors is None else InversionSettings.from_priors_file(priors)
     if max_steps:
         settings = replace(settings, sampler=replace(settings.sampler, max_steps=max_steps))
     record = {"shot": obs.shot_id, "instrument": obs.instrument, "product": product}
@@ -178,6 +178,7 @@ def main(argv=None):
     parser.add_argument("--max-steps", type=int, help="sampler step cap (default: settings')")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--priors", type=Path, help="priors file (default settings without)")
     parser.add_argument("--tag", default="")
     args = parser.parse_args(argv)
     files = _files(args.data)
@@ -191,7 +192,8 @@ def main(argv=None):
         shots = shots[: args.max_shots] if args.max_shots else shots
         seeds = np.random.SeedSequence(args.seed).spawn(len(shots))
         jobs += [
-            (o, wanted[(instrument, o.shot_id)], args.max_steps, s) for o, s in zip(shots, seeds)
+            (o, wanted[(instrument, o.shot_id)], args.max_steps, s, args.priors)
+            for o, s in zip(shots, seeds)
         ]
     print(f"{len(jobs)} shots to invert")
     records, results = [], {}
@@ -205,6 +207,7 @@ def main(argv=None):
     summary = {
         "data": {k: Path(v).name for k, v in files.items()},
         "max_steps": args.max_steps,
+        "priors": None if args.priors is None else args.priors.read_text(),
         **{i: statistics(records, i) for i in args.instrument},
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))

@@ -139,3 +139,19 @@ def test_metrics_and_the_inversion_read_a_shot_alike(gedi, lvis):
             else:
                 with pytest.raises(ValueError, match=result.status):
                     Shot.from_observation(obs, settings)
+
+
+def test_a_clipped_shot_is_inverted_with_its_plateau_censored(gedi):
+    """A real shot clipped below its peak, in a file without a saturation level: the
+    analysis flags it and the inversion's window treats the plateau as saturated."""
+    from dataclasses import replace
+
+    from lidarinv.inference import InversionSettings
+    from lidarinv.inference.shot import Shot
+
+    obs = gedi[0][0]
+    level = obs.noise_mean + 0.6 * (obs.samples.max() - obs.noise_mean)
+    clipped = replace(obs, samples=np.minimum(obs.samples, level))
+    assert "clipped" in analyse(clipped).flags
+    shot = Shot.from_observation(clipped, InversionSettings())
+    assert shot.window.saturated.sum() >= 3 and shot.window.saturation == pytest.approx(level)

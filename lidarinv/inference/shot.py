@@ -8,7 +8,7 @@ observation comes from here: the shot's nuisance priors (:meth:`Shot.nuisance_pr
 the noise held fixed where it is not sampled (:meth:`Shot.noise_overrides`), the window.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -166,7 +166,9 @@ class Shot:
         -----
         The shot is analysed exactly as ``lidarinv metrics`` analyses it
         (:func:`lidarinv.observe.analyse`, the instrument's processing defaults unless
-        ``processing`` is given), so the commands agree on its status. The window runs
+        ``processing`` is given), so the commands agree on its status. A clipped return
+        whose file gives no saturation level (a plateau at the maximum) is taken as
+        saturated there: those samples enter the likelihood as censored from above. The window runs
         from ``margin_below_m`` below the lower of the signal end and the ground's pulse
         to the signal start plus the larger of ``margin_above_m`` and half the detected
         canopy height: signal-free bins above the canopy constrain the top height.
@@ -177,6 +179,8 @@ class Shot:
         analysis = analyse(obs, settings.processing, instrument=instrument, metrics=False)
         if not analysis.ok:
             raise ValueError(f"shot {obs.shot_id}: {analysis.status}: {analysis.reason}")
+        if "clipped" in analysis.flags:  # no saturation level in the file: the plateau's
+            obs = replace(obs, saturation=float(obs.samples.max()))  # samples are ≥ it
         broadening = 0.0
         if settings.use_measured_pulse and obs.pulse is not None:
             # the transmitted waveform is not the whole response: the ground return's lower
