@@ -27,7 +27,7 @@ from lidarinv.io import iter_observations, read_gedi_l2a, read_gedi_l2b, read_lv
 from lidarinv.observe import Observation, analyse
 
 HERE = Path(__file__).resolve().parent
-QUANTITIES = ("ground", "rh98", "cover")
+QUANTITIES = ("ground", "rh98", "rh98_model_convention", "cover")
 #: Margin (m) by which a height interval is widened before asking if it holds the
 #: product: the products' own errors are of that size.
 WIDENING_M = 1.0
@@ -73,6 +73,8 @@ def invert_one(job):
         settings = replace(settings, sampler=replace(settings.sampler, max_steps=max_steps))
     record = {"shot": obs.shot_id, "instrument": obs.instrument, "product": product}
     analysis = analyse(obs)
+    offset = convention_offset(obs, analysis)
+    record["product"] = {**product, "rh98_model_convention": product["rh98"] + offset}
     record["analysis"] = {"status": analysis.status, "ground": analysis.ground,
                           "rh98": None if analysis.rh is None else float(analysis.rh[98]),
                           "n_modes": analysis.n_modes, "flags": analysis.flags}  # fmt: skip
@@ -93,6 +95,22 @@ def invert_one(job):
         q = np.percentile(values, (5, 50, 95)) if values.size else np.full(3, np.nan)
         record["posterior"][quantity] = [float(v) for v in q]
     return record, result
+
+
+def convention_offset(obs, analysis) -> float:
+    """RH98 of the shot's own waveform in the posterior's convention (the energy above the
+    noise, unsmoothed, as the model waveform's) minus RH98 in the product's convention
+    (GEDI L2A: smoothed; LVIS L2: recorded counts, noise included): what the product's
+    convention adds, measured on the shot (NaN where the analysis has no RH)."""
+    if analysis.rh is None:
+        return np.nan
+    from dataclasses import replace
+
+    from lidarinv.observe import processing_settings
+
+    model = replace(processing_settings(obs.instrument), rh_energy="above-noise", rh_smoothed=False)
+    plain = analyse(obs, model)
+    return float(plain.rh[98] - analysis.rh[98]) if plain.rh is not None else np.nan
 
 
 def _cover_name(result):
@@ -117,16 +135,20 @@ def statistics(records, instrument) -> dict:
         "p90_seconds": float(np.percentile([r["seconds"] for r in done], 90)) if done else None,
     }
     for q in QUANTITIES:
-        pairs = [(r["posterior"][q], r["product"][q]) for r in done
-                 if np.isfinite(r["product"][q]) and np.all(np.isfinite(r["posterior"][q]))]  # fmt: skip
-        if not pairs:
+        name = q.removesuffix("_model_convention")  # the posterior quantity compared
+        triples = [
+            (r["posterior"][name], r["product"][q], r)
+            for r in done
+            if np.isfinite(r["product"][q]) and np.all(np.isfinite(r["posterior"][name]))
+        ]
+        if not triples:
             continue
-        d = np.array([post[1] - prod for post, prod in pairs])
-        widen = WIDENING_M if q != "cover" else 0.0
-        inside = [post[0] <= prod <= post[2] for post, prod in pairs]
-        widened = [post[0] - widen <= prod <= post[2] + widen for post, prod in pairs]
+        d = np.array([post[1] - prod for post, prod, _ in triples])
+        widen = 0.0 if q == "cover" else WIDENING_M
+        inside = [post[0] <= prod <= post[2] for post, prod, _ in triples]
+        widened = [post[0] - widen <= prod <= post[2] + widen for post, prod, _ in triples]
         out[q] = {
-            "n": len(pairs),
+            "n": len(triples),
             "median": float(np.median(d)),
             "median_abs": float(np.median(np.abs(d))),
             "p90_abs": float(np.percentile(np.abs(d), 90)),
@@ -135,7 +157,7 @@ def statistics(records, instrument) -> dict:
             "inside_90_widened": float(np.mean(widened)),
         }
         if q == "ground":
-            far = [r for (post, prod), r in zip(pairs, done) if abs(post[1] - prod) > 3.0]
+            far = [r for post, prod, r in triples if abs(post[1] - prod) > 3.0]
             out[q]["off_by_3m"] = len(far)
             out[q]["off_by_3m_unflagged"] = sum(not r["flags"] for r in far)
     return out
