@@ -86,8 +86,9 @@ def test_invert_prints_the_footprint_quantities_first(tmp_path, capsys, fake_inv
     assert lines[1].lstrip().startswith("canopy height")
     assert "tallest stem within the footprint" in lines[1]
     assert lines[2].lstrip().startswith("RH98 of the fitted waveform")
-    assert lines[3].lstrip().startswith("canopy cover")
-    assert "stand top_height" in lines[4] and "upper limit" in lines[4]
+    assert lines[3].lstrip().startswith("canopy cover") and "L2B" in lines[3]
+    assert lines[4].lstrip().startswith("crown cover")
+    assert "stand top_height" in lines[5] and "upper limit" in lines[5]
 
 
 def test_simulate_refuses_to_overwrite_and_names_the_file(tmp_path, capsys):

@@ -18,10 +18,14 @@ def tiny_result(shot_id="gedi-mixed", seed=0):
     return InversionResult(
         shot_id=shot_id,
         parameter_names=names,
-        units={"cover": "1", "top_height": "m", "gain": "DN", "rh98": "m"},
+        units={"cover": "1", "top_height": "m", "gain": "DN", "rh98": "m", "gap_cover": "1"},
         samples=samples,
         log_prob=rng.normal(size=200),
-        derived={"rh98": rng.normal(15, 1, 200), "footprint_top_height": rng.normal(18, 1, 200)},
+        derived={
+            "rh98": rng.normal(15, 1, 200),
+            "footprint_top_height": rng.normal(18, 1, 200),
+            "gap_cover": rng.uniform(0.3, 0.5, 200),
+        },
         fixed={"crown_radius_slope": 0.1, "rho_ratio": None},
         diagnostics={
             "tau": np.ones(3),

@@ -21,7 +21,12 @@ HEADLINE = (
         "tallest stem within the footprint's 1/e² radius (compare with RH98)",
     ),
     ("rh98", "RH98 of the fitted waveform", "height above the ground of 98 % of its energy"),
-    ("cover", "canopy cover", "crown cover: fraction of the ground under at least one crown"),
+    (
+        "gap_cover",
+        "canopy cover",
+        "gap-based, 1 − P(0) through the tree crowns (compare with GEDI L2B cover)",
+    ),
+    ("cover", "crown cover", "fraction of the ground under at least one crown"),
 )
 
 
