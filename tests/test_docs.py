@@ -49,8 +49,9 @@ def test_docs_build_without_warnings_and_run_the_tutorials(tmp_path):
         assert (out / f"{page}.html").exists(), page
     tutorial = (out / "auto_tutorials" / "plot_02_invert_shot.html").read_text()
     assert "canopy height" in tutorial and "sphx-glr-script-out" in tutorial  # it ran
-    stub = (out / "auto_tutorials" / "real_02_invert_real_shot.html").read_text()
-    assert "stub" in stub
+    for real in ("plot_05_real_metrics", "plot_06_invert_real_shot"):  # real shots, run
+        page = (out / "auto_tutorials" / f"{real}.html").read_text()
+        assert "sphx-glr-script-out" in page and "L2A" in page
 
 
 def test_validation_pages_say_when_a_summary_is_absent(tmp_path):
