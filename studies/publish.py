@@ -36,6 +36,7 @@ SOURCES = {
     "batch-throughput": "batch_throughput.json",
     "scaling": "scaling/scaling.json",
     "real-products": "real_products{tag}/summary.json",
+    "real-inversion": "real_inversion{tag}/summary.json",
 }
 
 

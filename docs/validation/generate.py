@@ -207,6 +207,47 @@ def render_speed(record, figures: Path, key: str) -> str:
     return text + provenance(record)
 
 
+def render_real_inversion(record, figures: Path, key: str) -> str:
+    """Posteriors of real shots against the products (``studies/real_inversion.py``)."""
+    s = record["summary"]
+    text = (
+        "Posterior medians against the products; *inside* is how often the product lies in "
+        "the 90 % interval, *widened* in it widened by 1 m (the products' own errors are of "
+        "that size); ``rh98_model_convention`` compares the posterior's RH98 (of the model "
+        "waveform) with the product's moved by what the product's RH convention adds on the "
+        "shot's own waveform.\n\n"
+    )
+    if s.get("priors"):
+        text += f"Priors file: ``{' '.join(s['priors'].split())}``.\n\n"
+    for instrument in ("gedi", "lvis"):
+        part = s.get(instrument)
+        if not part:
+            continue
+        text += (
+            f"**{instrument.upper()}.** {part['inverted']} of {part['shots']} shots inverted, "
+            f"{part['converged']} converged (the rest flagged: "
+            f"{part['not_converged_flagged']}); median {_cell(part.get('median_seconds'))} s "
+            f"a shot, 90th percentile {_cell(part.get('p90_seconds'))} s.\n\n"
+        )
+        header = ["quantity", "shots", "median (posterior − product)", "median |d|",
+                  "90th pct |d|", "inside", "widened"]  # fmt: skip
+        rows = [
+            [
+                q,
+                d.get("n"),
+                d.get("median"),
+                d.get("median_abs"),
+                d.get("p90_abs"),
+                d.get("inside_90"),
+                d.get("inside_90_widened"),
+            ]
+            for q, d in part.items()
+            if isinstance(d, dict) and "median_abs" in d
+        ]
+        text += table(header, rows) + "\n"
+    return text + provenance(record)
+
+
 def render_forward_accuracy(record, figures: Path, key: str) -> str:
     """The explicit engine's error and time per stand kind (``forward_runtime_vs_error``)."""
     s = record["summary"]
@@ -325,6 +366,12 @@ PAGES = {
                 "Direct metrics against the products",
                 render_real_products,
                 "python studies/real_products.py",
+            ),
+            (
+                "real-inversion",
+                "Posteriors against the products",
+                render_real_inversion,
+                "python studies/real_inversion.py --data examples --workers 2",
             ),
         ],
     ),
