@@ -12,7 +12,7 @@ and ``predictive_*.png`` (typical, worst and multi-layer shots).
     python studies/real_inversion.py [--data ../shared/data/real | examples]
                                      [--instrument gedi lvis] [--max-shots N]
                                      [--max-steps 20000] [--workers 1] [--seed 1]
-                                     [--priors FILE] [--tag _NAME]
+                                     [--priors FILE] [--cohorts 1|2|auto] [--tag _NAME]
 """
 
 import argparse
@@ -63,7 +63,7 @@ def products(files) -> dict:
 
 def invert_one(job):
     """One shot: its posterior summary against the product, or why it failed."""
-    obs, product, max_steps, seed, priors = job
+    obs, product, max_steps, seed, priors, cohorts = job
     from dataclasses import replace
 
     from lidarinv.inference import InversionSettings, invert_shot
@@ -71,6 +71,8 @@ def invert_one(job):
     settings = InversionSettings() if priors is None else InversionSettings.from_priors_file(priors)
     if max_steps:
         settings = replace(settings, sampler=replace(settings.sampler, max_steps=max_steps))
+    if cohorts is not None:
+        settings = replace(settings, cohorts=cohorts if cohorts == "auto" else int(cohorts))
     record = {"shot": obs.shot_id, "instrument": obs.instrument, "product": product}
     analysis = analyse(obs)
     offset = convention_offset(obs, analysis)
@@ -88,6 +90,8 @@ def invert_one(job):
     record["converged"] = result.converged
     record["flags"] = list(result.flags)
     record["steps"] = int(result.diagnostics.get("n_steps", 0))
+    record["cohorts"] = result.settings["cohorts"]
+    record["predictive_p_value"] = result.diagnostics["predictive_p_value"]
     record["posterior"] = {}
     names = {"ground": "ground_elevation", "rh98": "rh98", "cover": _cover_name(result)}
     for quantity, name in names.items():
@@ -133,6 +137,8 @@ def statistics(records, instrument) -> dict:
         "not_converged_flagged": int(sum((not r["converged"]) and bool(r["flags"]) for r in done)),
         "median_seconds": float(np.median([r["seconds"] for r in done])) if done else None,
         "p90_seconds": float(np.percentile([r["seconds"] for r in done], 90)) if done else None,
+        "two_cohorts": int(sum(r.get("cohorts") == 2 for r in done)),
+        "misfit_flagged": int(sum(r.get("predictive_p_value", 1.0) < 0.01 for r in done)),
     }
     for q in QUANTITIES:
         name = q.removesuffix("_model_convention")  # the posterior quantity compared
@@ -201,6 +207,7 @@ def main(argv=None):
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--priors", type=Path, help="priors file (default settings without)")
+    parser.add_argument("--cohorts", choices=("1", "2", "auto"), help="height cohorts")
     parser.add_argument("--tag", default="")
     args = parser.parse_args(argv)
     files = _files(args.data)
@@ -214,7 +221,7 @@ def main(argv=None):
         shots = shots[: args.max_shots] if args.max_shots else shots
         seeds = np.random.SeedSequence(args.seed).spawn(len(shots))
         jobs += [
-            (o, wanted[(instrument, o.shot_id)], args.max_steps, s, args.priors)
+            (o, wanted[(instrument, o.shot_id)], args.max_steps, s, args.priors, args.cohorts)
             for o, s in zip(shots, seeds)
         ]
     print(f"{len(jobs)} shots to invert")
@@ -230,6 +237,7 @@ def main(argv=None):
         "data": {k: Path(v).name for k, v in files.items()},
         "max_steps": args.max_steps,
         "priors": None if args.priors is None else args.priors.read_text(),
+        "cohorts": args.cohorts,
         **{i: statistics(records, i) for i in args.instrument},
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))

@@ -13,6 +13,7 @@ from tiny_results import tiny_result
 import lidarinv.inference
 from lidarinv.cli import build_parser, main
 from lidarinv.cli.batch import _settings as batch_settings
+from lidarinv.cli.options import inversion_settings
 from lidarinv.cli.outputs import save_group
 from lidarinv.inference import InversionResult
 from lidarinv.io import write_observations
@@ -119,6 +120,7 @@ def test_simulate_refuses_to_overwrite_and_names_the_file(tmp_path, capsys):
         ["--max-steps", "0"],
         ["--max-steps", "-5"],
         ["--instrument", "icesat"],
+        ["--cohorts", "3"],
     ],
 )
 def test_parser_refuses_values_a_run_cannot_use(option, capsys):
@@ -137,6 +139,15 @@ def test_walkers_below_the_ensembles_minimum_are_refused_before_sampling(
     assert "at least 26 walkers for 12 sampled parameters" in err
     assert fake_inversion == [] and not (tmp_path / "p.h5").exists()
     assert main([*INVERT_EXAMPLE, "-o", str(tmp_path / "p.h5"), "--walkers", "26"]) == 0
+
+
+def test_two_cohorts_need_more_walkers_and_auto_counts_them_too(tmp_path, capsys, fake_inversion):
+    for cohorts in ("2", "auto"):
+        args = [*INVERT_EXAMPLE, "-o", str(tmp_path / "p.h5"), "--walkers", "26"]
+        assert main([*args, "--cohorts", cohorts]) == 2
+        assert "for 15 sampled parameters" in capsys.readouterr().err
+    args = build_parser().parse_args(["invert", "x.h5", "-o", "y.h5", "--cohorts", "auto"])
+    assert inversion_settings(args).cohorts == "auto"
 
 
 def test_batch_takes_max_steps_walkers_and_instrument():

@@ -35,13 +35,13 @@ def test_replicated_observations_carry_the_likelihoods_variance():
     values = {"gain": np.full(n, 1000.0), "baseline": np.full(n, 50.0),
               "noise_sigma": np.full(n, 2.0)}  # fmt: skip
     covariance = np.diag(np.arange(bins, dtype=float)) + 0.5  # a discrepancy between bins
-    draws = replicate_observation(_likelihood(bins, fixed=covariance), signal, values, rng)
+    draws, _, _ = replicate_observation(_likelihood(bins, fixed=covariance), signal, values, rng)
     mean = 50.0 + 1000.0 * signal[0]
     np.testing.assert_allclose(draws.mean(axis=0), mean, atol=0.05)
     expected_sd = np.sqrt(4.0 + np.diag(covariance))  # σn² + the discrepancy's diagonal
     np.testing.assert_allclose(draws.std(axis=0), expected_sd, rtol=0.02)
     # a discrepancy proportional to the model: (η a W)²
-    per_row = replicate_observation(_likelihood(bins, eta=0.2), signal, values, rng)
+    per_row, _, _ = replicate_observation(_likelihood(bins, eta=0.2), signal, values, rng)
     np.testing.assert_allclose(
         per_row.std(axis=0), np.sqrt(4.0 + (0.2 * 1000.0 * signal[0]) ** 2), rtol=0.02
     )
@@ -54,7 +54,7 @@ def test_replicated_observations_stop_at_the_floor_and_the_digitiser_maximum():
               "noise_sigma": np.full(n, 3.0)}  # fmt: skip
     censored = np.array([True, False, False, False])
     post = _likelihood(bins, floor=9.0, saturation=12.0, censored=censored)
-    draws = replicate_observation(post, np.zeros((n, bins)), values, rng)
+    draws, _, _ = replicate_observation(post, np.zeros((n, bins)), values, rng)
     assert draws.min() == 9.0 and draws.max() == 12.0
     assert np.mean(draws == 12.0) == pytest.approx(1 - 0.7475, abs=0.02)  # P(N(10, 3) > 12)
 

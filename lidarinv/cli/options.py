@@ -32,7 +32,8 @@ def walker_count(text: str) -> int:
 
 
 def add_inversion_options(parser) -> None:
-    """``--priors``, ``--instrument``, ``--max-steps``, ``--walkers`` and ``--overwrite``."""
+    """``--priors``, ``--instrument``, ``--max-steps``, ``--walkers``, ``--cohorts`` and
+    ``--overwrite``."""
     parser.add_argument("--priors", type=Path, help="TOML file of prior overrides")
     parser.add_argument(
         "--instrument",
@@ -49,6 +50,12 @@ def add_inversion_options(parser) -> None:
         help="walkers of the ensemble (even; at least 2 × free parameters + 2; default 64)",
     )
     parser.add_argument(
+        "--cohorts",
+        choices=("1", "2", "auto"),
+        help="height cohorts of the stand: 1 (default), 2 (a lower storey), or auto: 1, and "
+        "2 where 1 leaves a misfit, the lower DIC kept",
+    )
+    parser.add_argument(
         "--overwrite", action="store_true", help="replace results the output already holds"
     )
 
@@ -59,6 +66,8 @@ def inversion_settings(args, measured_pulse: bool = True):
     from lidarinv.inference import InversionSettings
 
     changes = {} if args.instrument is None else {"instrument": args.instrument}
+    if getattr(args, "cohorts", None) is not None:
+        changes["cohorts"] = args.cohorts if args.cohorts == "auto" else int(args.cohorts)
     if args.priors is not None:
         if not args.priors.exists():
             raise ValueError(f"no such priors file: {args.priors}")
@@ -96,9 +105,11 @@ def sampled_dimensions(settings, measured_pulse: bool = True) -> int:
     nuisance.update(gain=Uniform(1.0, 2.0), noise_sigma=Uniform(1.0, 2.0))
     if measured_pulse and settings.use_measured_pulse:
         nuisance["pulse_broadening"] = placeholder
+    cohorts = 1 if settings.cohorts == 1 else 2  # "auto" samples two cohorts too
     space = default_space(
-        nuisance, overrides, settings.ridges, settings.unbounded, settings.tallest_stem
-    )
+        nuisance, overrides, settings.ridges, settings.unbounded, settings.tallest_stem,
+        cohorts=cohorts,
+    )  # fmt: skip
     return space.ndim
 
 

@@ -63,11 +63,13 @@ def replicate_observation(like, signal, values, rng) -> np.ndarray:
 
     Returns
     -------
-    array (n, bins) (DN)
+    draws : array (n, bins) (DN)
         The model mean b + a·W plus noise of the likelihood's per-bin variance (noise,
         shot noise and the model discrepancy), set to the floor or the digitiser maximum
         where the product would have set it. Quantiles over the rows are the posterior
         predictive bands.
+    mean, variance : array (n, bins)
+        The predictive mean (DN) and per-bin variance (DN²) they were drawn from.
     """
     if like.fixed_discrepancy is None:
         extra = (like.discrepancy * np.asarray(values["gain"])[:, None] * signal) ** 2
@@ -79,7 +81,12 @@ def replicate_observation(like, signal, values, rng) -> np.ndarray:
         signal, values["gain"], values["baseline"], values["noise_sigma"], like.shot_factor, extra
     )
     draws = mean + np.sqrt(variance) * rng.standard_normal(mean.shape)
-    data = like.data
+    return _recorded(draws, like.data), mean, variance
+
+
+def _recorded(draws, data) -> np.ndarray:
+    """Draws as the digitiser records them: at the floor or the maximum where the product
+    would have set them."""
     if data.censored.any() and np.isfinite(data.floor):
         draws = np.maximum(draws, data.floor)
     if np.isfinite(data.saturation):
@@ -87,11 +94,62 @@ def replicate_observation(like, signal, values, rng) -> np.ndarray:
     return draws
 
 
+#: A posterior-predictive p-value below this flags a misfit the model cannot explain.
+MISFIT_P_VALUE = 0.01
+
+
+def fit_statistics(log_likelihood, observed, replicated, mean, variance) -> dict:
+    """How well the posterior explains the shot: DIC and a posterior-predictive check.
+
+    Parameters
+    ----------
+    log_likelihood : array (n,)
+        log p(y | θᵢ) of posterior samples θᵢ.
+    observed : array (bins,) (DN)
+    replicated : array (n, bins) (DN)
+        One replicated observation per sample (:func:`replicate_observation`).
+    mean, variance : array (n, bins)
+        Each sample's predictive mean (DN) and per-bin variance (DN²).
+
+    Returns
+    -------
+    dict
+        ``dic``: the deviance information criterion D̄ + p_V, D = −2 log p(y | θ), with
+        p_V = var(D)/2 the effective number of parameters (Gelman et al. 2004, Bayesian
+        Data Analysis, 2nd ed., §6.7); smaller is better, and it compares models of the
+        same data under the same likelihood. ``effective_parameters``: p_V.
+        ``predictive_p_value``: P(T(y_rep, θ) ≥ T(y, θ)) for the discrepancy
+        T(y, θ) = Σ (y − μθ)²/σθ² over the window (Gelman, Meng & Stern 1996): near 0, the
+        waveform departs from the model by more than its noise and discrepancy allow.
+    """
+    deviance = -2.0 * np.asarray(log_likelihood, float)
+    deviance = deviance[np.isfinite(deviance)]
+    p_v = 0.5 * float(np.var(deviance)) if deviance.size > 1 else float("nan")
+    t_observed = np.sum((observed - mean) ** 2 / variance, axis=1)
+    t_replicated = np.sum((replicated - mean) ** 2 / variance, axis=1)
+    return {
+        "dic": float(np.mean(deviance) + p_v) if deviance.size else float("nan"),
+        "effective_parameters": p_v,
+        "predictive_p_value": float(np.mean(t_replicated >= t_observed)),
+    }
+
+
 def _likelihood_flags(like) -> list:
     """Where the likelihood had to simplify the shot's noise, what it did."""
     if like.correlation_obstacle is None:
         return []
     return [f"read noise taken as white: {like.correlation_obstacle}"]
+
+
+def _misfit_flags(fit, cohorts) -> list:
+    """A flag where the posterior-predictive check finds a misfit."""
+    if not fit["predictive_p_value"] < MISFIT_P_VALUE:
+        return []
+    hint = "; a lower storey may fit (cohorts = 2)" if cohorts == 1 else ""
+    return [
+        f"misfit: the waveform departs from the model beyond its noise and discrepancy "
+        f"(posterior-predictive p = {fit['predictive_p_value']:.3f}){hint}"
+    ]
 
 
 def _flat(array, run: SamplerRun):
@@ -134,7 +192,12 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
         terms.signal[good], values["gain"], values["baseline"], values["noise_sigma"]
     )[0]
     predictive = np.percentile(mean, QUANTILES, axis=0)
-    replicated = replicate_observation(post.likelihood, terms.signal[good], values, rng)
+    replicated, rep_mean, rep_variance = replicate_observation(
+        post.likelihood, terms.signal[good], values, rng
+    )
+    fit = fit_statistics(
+        terms.log_likelihood[good], problem.window.samples, replicated, rep_mean, rep_variance
+    )
     top = float(np.max(values["top_height"]))
     profile_heights = np.linspace(0.0, top, 60)
     profile = post.mapping.crown_volume_profile(values, profile_heights)
@@ -168,8 +231,11 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             "start_modes": int(run.start_modes),
             "seconds": dict(run.seconds),
             "tau_history": [[int(i), t] for i, t in run.tau_history],
+            **fit,
         },
-        flags=list(run.flags) + _likelihood_flags(post.likelihood),
+        flags=list(run.flags)
+        + _likelihood_flags(post.likelihood)
+        + _misfit_flags(fit, problem.settings.cohorts),
         profile_heights=profile_heights,
         profile=np.percentile(profile, QUANTILES, axis=0),
         axis=problem.window.axis,

@@ -3,8 +3,11 @@
 :func:`invert_shot` builds the problem (:func:`.problem.build_problem`), simulates its
 discrepancy covariance where the settings ask (:func:`.realisations.realisation_covariance`),
 samples the posterior (:func:`.sampling.run_sampler`) and collects the result
-(:func:`.collect.collect_result`).
+(:func:`.collect.collect_result`). With ``cohorts="auto"``, where one height cohort leaves
+a misfit, it does so again with two and keeps the stand model the DIC prefers.
 """
+
+from dataclasses import replace
 
 import emcee
 import numpy as np
@@ -12,14 +15,18 @@ from threadpoolctl import threadpool_limits
 
 from lidarinv.observe.observation import Observation
 
-from .collect import collect_result
+from .collect import MISFIT_P_VALUE, collect_result
 from .likelihood.covariance import covariance_obstacle
 from .likelihood.discrepancy import SIMULATED
 from .problem import InversionProblem, build_problem
 from .realisations import realisation_covariance
 from .result import InversionResult
 from .sampling.sampler import run_sampler
-from .settings import InversionSettings
+from .settings import AUTO, InversionSettings
+
+#: DIC difference below which the two stand models are reported as undecided (a
+#: difference of a few units is within the DIC's own sampling noise).
+DIC_UNDECIDED = 5.0
 
 
 def invert_shot(
@@ -104,10 +111,18 @@ def prepare_problem(
 
 
 def _invert(observation, settings, rng, progress, backend_path) -> InversionResult:
+    settings = InversionSettings() if settings is None else settings
+    if settings.cohorts == AUTO:
+        return _select_cohorts(observation, settings, rng, progress, backend_path)
     problem, start, report = prepare_problem(observation, settings, rng)
+    return _sample(problem, start, report, rng, progress, backend_path, observation.shot_id)
+
+
+def _sample(problem, start, report, rng, progress, backend_path, group) -> InversionResult:
+    """Run the sampler on a prepared problem and collect its result."""
     backend = None
     if backend_path is not None:
-        backend = emcee.backends.HDFBackend(str(backend_path), name=f"shot_{observation.shot_id}")
+        backend = emcee.backends.HDFBackend(str(backend_path), name=f"shot_{group}")
     run = run_sampler(
         problem.log_posterior,
         problem.space,
@@ -122,3 +137,36 @@ def _invert(observation, settings, rng, progress, backend_path) -> InversionResu
     if "seconds" in report:
         run.seconds["discrepancy"] = report["seconds"]
     return collect_result(problem, run, rng)
+
+
+def _select_cohorts(observation, settings, rng, progress, backend_path) -> InversionResult:
+    """One height cohort, and two where one leaves a misfit: the lower DIC is kept.
+
+    The one-cohort run comes first. Where its posterior-predictive check finds a misfit
+    (p below :data:`.collect.MISFIT_P_VALUE`) the shot is inverted again with a lower
+    storey, with its own discrepancy, and the model with the lower DIC is kept: both are
+    predictive models of the same samples. The result records the DICs and the choice,
+    and a flag where they differ by less than :data:`DIC_UNDECIDED` (the data leave both
+    explanations).
+    """
+    group = observation.shot_id
+    problem, start, report = prepare_problem(observation, replace(settings, cohorts=1), rng)
+    results = {1: _sample(problem, start, report, rng, progress, backend_path, group)}
+    p_value = results[1].diagnostics["predictive_p_value"]
+    if p_value >= MISFIT_P_VALUE:
+        result = results[1]
+        result.diagnostics["cohorts"] = {"chosen": 1, "dic": {1: result.diagnostics["dic"]}}
+        return result
+    problem, start, report = prepare_problem(observation, replace(settings, cohorts=2), rng)
+    group = f"{observation.shot_id}_cohorts2"
+    results[2] = _sample(problem, start, report, rng, progress, backend_path, group)
+    dic = {k: r.diagnostics["dic"] for k, r in results.items()}
+    chosen = 2 if dic[2] < dic[1] else 1
+    result = results[chosen]
+    result.diagnostics["cohorts"] = {"chosen": chosen, "dic": dic}
+    if abs(dic[2] - dic[1]) < DIC_UNDECIDED:
+        result.flags.append(
+            f"stand model undecided: DIC {dic[1]:.1f} with one cohort, {dic[2]:.1f} with two; "
+            f"the other ({3 - chosen} cohort{'s' if chosen == 1 else ''}) fits nearly as well"
+        )
+    return result

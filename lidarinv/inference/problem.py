@@ -19,6 +19,7 @@ from .likelihood.gaussian import ShotLikelihood, correlation_obstacle
 from .likelihood.marginal import gain_marginal_obstacle
 from .model.parameters import DEFAULT_STRUCTURE_PRIORS, default_space
 from .model.stand import StandMapping, default_template
+from .model.two_cohort import TwoCohortMapping
 from .model.waveform import ShotModel
 from .posterior import LogPosterior
 from .settings import InversionSettings
@@ -146,6 +147,11 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
     -------
     InversionProblem
     """
+    if settings.cohorts not in (1, 2):
+        raise ValueError(
+            f"a problem has one stand model: cohorts {settings.cohorts!r} is chosen between "
+            "two problems by invert_shot"
+        )
     top = DEFAULT_STRUCTURE_PRIORS["top_height"]
     nuisance = shot.nuisance_priors(settings.ground_prior_sd_m, (top.lower, top.upper))
     correlation = shot.noise_correlation() if settings.correlated_noise else None
@@ -168,14 +174,16 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
     instrument = shot.instrument
     space = default_space(
         nuisance, overrides, settings.ridges, settings.unbounded, settings.tallest_stem,
-        instrument.extinction_per_favd, backend,
+        instrument.extinction_per_favd, backend, settings.cohorts,
     )  # fmt: skip
-    mapping = StandMapping(
-        default_template(settings.shape_pair),
-        settings.shape_pair,
-        footprint_sigma_m=instrument.footprint_sigma_m if settings.tallest_stem else None,
-        backend=backend,
-    )
+    template = default_template(settings.shape_pair)
+    if settings.cohorts == 2:
+        mapping = TwoCohortMapping(template, settings.shape_pair, backend=backend)
+    else:
+        sigma = instrument.footprint_sigma_m if settings.tallest_stem else None
+        mapping = StandMapping(
+            template, settings.shape_pair, footprint_sigma_m=sigma, backend=backend
+        )
     expected = ExpectedWaveformModel(
         instrument, shot.window.axis, mapping.template, mapping.model_free, settings.model
     )

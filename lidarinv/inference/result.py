@@ -56,7 +56,7 @@ class InversionResult:
     version : str
     replicated : array (5, n_bins) or None
         Quantiles of replicated observations (DN): the posterior predictive with the
-        noise and the model discrepancy (:func:`.invert.replicate_observation`); None
+        noise and the model discrepancy (:func:`.collect.replicate_observation`); None
         in files written before it was stored.
     saturated : array of bool or None
         Window samples at the digitiser maximum (censored from above).
@@ -166,6 +166,14 @@ class InversionResult:
                     f"start {seconds['start']:.1f} s"
                 )
             lines.append(f"time: {start}, sampling {seconds['sampling']:.1f} s")
+        if "predictive_p_value" in d:
+            lines.append(
+                f"fit: DIC {d['dic']:.1f} ({d['effective_parameters']:.1f} effective "
+                f"parameters), posterior-predictive p {d['predictive_p_value']:.3f}"
+            )
+        if "cohorts" in d:
+            dic = ", ".join(f"{k} cohort(s) {v:.1f}" for k, v in d["cohorts"]["dic"].items())
+            lines.append(f"stand model: {d['cohorts']['chosen']} cohort(s) chosen by DIC ({dic})")
         lines += [f"warning: {flag}" for flag in self.flags]
         return "\n".join(lines)
 
@@ -183,6 +191,8 @@ class InversionResult:
             "converged": self.converged,
             "n_steps": int(self.diagnostics["n_steps"]),
             "max_tau": float(np.max(self.diagnostics["tau"])),
+            "predictive_p_value": float(self.diagnostics.get("predictive_p_value", np.nan)),
+            "cohorts": int((self.settings or {}).get("cohorts", 1)),
             "flags": "; ".join(self.flags),
         }
         for name, stats in self.summary().items():

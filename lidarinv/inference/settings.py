@@ -20,7 +20,14 @@ from .likelihood.discrepancy import DISCREPANCY_MODELS
 from .model.coordinates import DEFAULT_RIDGES
 from .model.prior_table import DEFAULT_UNBOUNDED
 from .model.tallest_stem import TALLEST_STEM_LATENTS
+from .model.two_cohort import COHORT2
 from .sampling.sampler import SamplerSettings
+
+#: ``InversionSettings.cohorts`` for a stand model chosen per shot by evidence.
+AUTO = "auto"
+
+#: Height cohorts a stand may have (``InversionSettings.cohorts``), or :data:`AUTO`.
+COHORT_COUNTS = (1, 2, AUTO)
 
 #: The explicit engine's quadrature for the discrepancy (see ``RealisationSettings``).
 DISCREPANCY_QUADRATURE = AccuracySettings(radial_nodes=2, angular_nodes=4)
@@ -125,6 +132,13 @@ class InversionSettings:
         then holds what remains once each stand's own tallest stem is accounted for. A
         priors file turns it on with a table for either latent (e.g.
         ``[tallest_stem_height]`` with ``free = true``, or a prior or a value).
+    cohorts : int or str
+        Height cohorts of the stand: 1, one truncated-normal height family; 2, a lower
+        storey beside it (:mod:`.model.two_cohort`), for multi-layer canopies and
+        emergents; ``"auto"``, one, and two where one leaves a misfit (its
+        posterior-predictive p < 0.01), the one with the lower DIC kept
+        (:func:`.invert.invert_shot`; twice the time on those shots). A priors file
+        turns 2 on with a table for a parameter of :data:`.model.two_cohort.COHORT2`.
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
         cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None
@@ -171,6 +185,13 @@ class InversionSettings:
     model: ModelSettings = field(default_factory=ModelSettings)
     realisations: RealisationSettings = field(default_factory=RealisationSettings)
     tallest_stem: bool = False
+    cohorts: int = 1
+
+    def __post_init__(self):
+        if self.cohorts not in COHORT_COUNTS:
+            raise ValueError(f"cohorts must be one of {COHORT_COUNTS}, got {self.cohorts!r}")
+        if self.cohorts != 1 and self.tallest_stem:
+            raise ValueError("a two-cohort stand cannot be conditioned on its tallest stem")
 
     @classmethod
     def from_priors_file(cls, path, **changes) -> "InversionSettings":
@@ -198,6 +219,8 @@ class InversionSettings:
             changes.setdefault("ground_prior_sd_m", ground["prior_sd"])
         if set(TALLEST_STEM_LATENTS) & set(priors):  # a table for a latent turns them on
             changes.setdefault("tallest_stem", True)
+        if set(COHORT2) & set(priors):  # a table for the lower storey turns it on
+            changes.setdefault("cohorts", 2)
         discrepancy = tables.get("discrepancy", {})
         if "model" in discrepancy:
             changes.setdefault("discrepancy_model", discrepancy["model"])

@@ -68,12 +68,12 @@ def read_priors_file(path) -> dict:
     ValueError
         For invalid TOML, an unknown table or a bad prior, naming the file and table.
     """
-    from lidarinv.inference.model.parameters import LATENT, NUISANCE, STRUCTURE
+    from lidarinv.inference.model.parameters import COHORT2, LATENT, NUISANCE, STRUCTURE
     from lidarinv.inference.model.priors import make_prior
     from lidarinv.inference.settings import SETTINGS_TABLES
 
     table = read_toml(path)
-    known = set(STRUCTURE) | set(NUISANCE) | set(LATENT) | set(SETTINGS_TABLES)
+    known = set(STRUCTURE) | set(COHORT2) | set(NUISANCE) | set(LATENT) | set(SETTINGS_TABLES)
     unknown = sorted(set(table) - known)
     if unknown:
         raise ValueError(f"{path}: unknown parameter(s) {unknown}; known: {sorted(known)}")

@@ -18,6 +18,7 @@ from .tallest_stem import (
     TALLEST_STEM_MEAN_POSITION,
     TALLEST_STEM_POSITION,
 )
+from .two_cohort import COHORT2, COHORT2_PRIORS
 
 #: Structural parameters of the default parameterisation: name → (units, description).
 STRUCTURE = {
@@ -61,7 +62,7 @@ LATENT = {
     ),
 }
 
-UNITS = {name: units for name, (units, _) in {**STRUCTURE, **NUISANCE, **LATENT}.items()}
+UNITS = {name: units for name, (units, _) in {**STRUCTURE, **COHORT2, **NUISANCE, **LATENT}.items()}
 
 #: Structural priors of the default parameterisation (nuisance priors depend on the shot).
 DEFAULT_STRUCTURE_PRIORS = {
@@ -98,6 +99,7 @@ def default_space(
     tallest_stem=False,
     interception_slope=INTERCEPTION_SLOPE,
     backend="auto",
+    cohorts=1,
 ) -> ParameterSpace:
     """The default parameterisation with shot-specific nuisance priors.
 
@@ -121,6 +123,9 @@ def default_space(
         k·G·Ω of the shot's instrument (see :class:`.space.ParameterSpace`).
     backend : str
         ``"auto"``, ``"numba"`` or ``"numpy"`` for the ridge maps.
+    cohorts : int
+        1, or 2 for a lower storey: the parameters :data:`.two_cohort.COHORT2` with their
+        priors :data:`.two_cohort.COHORT2_PRIORS`.
 
     Returns
     -------
@@ -131,7 +136,10 @@ def default_space(
     if "pulse_broadening" not in nuisance_priors:  # a preset pulse: the whole response
         priors["pulse_broadening"], fixed["pulse_broadening"] = Uniform(0.0, 1.0), 0.0
     params = []
-    for name, (units, description) in {**STRUCTURE, **NUISANCE}.items():
+    described = {**STRUCTURE, **(COHORT2 if cohorts == 2 else {}), **NUISANCE}
+    if cohorts == 2:
+        priors = {**COHORT2_PRIORS, **priors}
+    for name, (units, description) in described.items():
         if name not in priors:
             raise ValueError(f"no prior given for {name}")
         params.append(Parameter(name, units, priors[name], fixed.get(name), description))

@@ -166,15 +166,44 @@ class StandMapping:
         weight = (high - low)[:, None] * w * self.family.pdf(h, mean[:, None], sd[:, None], t)
         return h, weight
 
-    def _moments(self, v):
-        mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
+    def _moments(self, mean, sd, v):
+        """Heights (n, q), their probabilities (n, q) and crown areas (n, q) (m²) of the
+        profile's rule over each row's height distribution (mean, sd)."""
         h, weight = self._quadrature(mean, sd)
         total = weight.sum(axis=1)
         p = weight / np.where(total > 0, total, 1.0)[:, None]
         r0 = np.asarray(self._value(v, "crown_radius_intercept"), float)
         radius = (r0[..., None] if r0.ndim else r0) + v["crown_radius_slope"][:, None] * h
-        area = np.pi * radius**2
-        return mean, sd, h, p, area
+        return h, p, np.pi * radius**2
+
+    def shape_profile(self, mean, sd, mix, v, z) -> np.ndarray:
+        """Mean crown volume per stem and unit height of trees of one height law (m³/m).
+
+        Parameters
+        ----------
+        mean, sd : array (n,) (m)
+            The height family's mean and sd per row.
+        mix : array (n, 2) or (2,)
+            Fractions of the shape pair.
+        v : dict
+            The parameters' (n,) values (crown length ratio and radius law).
+        z : array (nz,) (m)
+            Heights above the ground.
+
+        Returns
+        -------
+        array (n, nz) (m³/m)
+            Σ_s m_s ∫ f(h)·π Rc(h)²·a_s((z − (1 − ℓ)h)/ℓh) dh (a_s the shape's section).
+        """
+        h, p, area = self._moments(mean, sd, v)
+        length = v["crown_length_ratio"][:, None, None] * h[:, None, :]
+        s = (z[None, :, None] - (h[:, None, :] - length)) / length
+        mix = np.broadcast_to(mix, (mean.size, 2))
+        out = np.zeros((mean.size, z.size))
+        for k, shape in enumerate(self.shape_pair):
+            section = CROWN_SHAPES[shape].section(s)
+            out += mix[:, k, None] * np.sum((p * area)[:, None, :] * section, axis=2)
+        return out
 
     def valid(self, v) -> np.ndarray:
         """Rows whose parameters describe a stand (before any model evaluation).
@@ -349,14 +378,8 @@ class StandMapping:
             bulk of each row's distribution (a_s the shape's horizontal section).
         """
         z = np.asarray(z, float)
-        mean, _sd, h, p, area = self._moments(v)
-        ratio = v["crown_length_ratio"][:, None, None]
-        mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
+        mean, sd = v["top_height"] - TOP_SDS * v["height_sd"], v["height_sd"]
+        _, p, area = self._moments(mean, sd, v)
         lam = poisson_stand.density_from_cover(v["cover"], np.sum(p * area, axis=1))
-        length = ratio * h[:, None, :]
-        s = (z[None, :, None] - (h[:, None, :] - length)) / length
-        out = np.zeros((mean.size, z.size))
-        for k, shape in enumerate(self.shape_pair):
-            section = CROWN_SHAPES[shape].section(s)
-            out += mix[:, k, None] * np.sum((p * area)[:, None, :] * section, axis=2)
-        return lam[:, None] * out
+        mix = np.column_stack([v["cone_fraction"], 1.0 - v["cone_fraction"]])
+        return lam[:, None] * self.shape_profile(mean, sd, mix, v, z)

@@ -1,0 +1,119 @@
+"""The two-storey stand mapping: its limits, its mixture identities, its settings."""
+
+import numpy as np
+import pytest
+
+from forward import poisson_stand
+from lidarinv.inference import InversionSettings
+from lidarinv.inference.model.parameters import default_space
+from lidarinv.inference.model.priors import Uniform
+from lidarinv.inference.model.stand import StandMapping, default_template
+from lidarinv.inference.model.two_cohort import COHORT2, TwoCohortMapping
+
+N = 6
+
+
+def _rows(rng, **changes):
+    v = {
+        "cover": rng.uniform(0.2, 0.9, N),
+        "pai": rng.uniform(0.5, 5.0, N),
+        "top_height": rng.uniform(12.0, 40.0, N),
+        "height_sd": rng.uniform(0.5, 4.0, N),
+        "crown_length_ratio": rng.uniform(0.2, 0.9, N),
+        "cone_fraction": rng.uniform(0.0, 1.0, N),
+        "crown_radius_slope": np.full(N, 0.1),
+        "understory_height": np.full(N, 1.0),
+        "understory_lai": np.full(N, 0.3),
+        "rho_ratio": np.full(N, 1.5),
+        "ground_elevation": np.zeros(N),
+        "cohort2_fraction": rng.uniform(0.1, 0.95, N),
+        "cohort2_top_ratio": rng.uniform(0.15, 0.8, N),
+        "cohort2_sd_ratio": rng.uniform(0.05, 0.4, N),
+    }
+    v.update(changes)
+    return v
+
+
+def _mixture_grid(mapping, v, i, heights):
+    """The mixture's height density and survival on a fine grid, row i."""
+    pdf = survival = 0.0
+    for share, mean, sd in mapping.cohort_heights({k: x[i : i + 1] for k, x in v.items()}):
+        pdf = pdf + share * mapping.family.pdf(heights, mean, sd, mapping.truncation)
+        survival = survival + share * mapping.family.sf(heights, mean, sd, mapping.truncation)
+    return pdf, survival
+
+
+def test_an_empty_lower_storey_gives_the_single_cohort_stand(rng):
+    v = _rows(rng, cohort2_fraction=np.zeros(N))
+    one, two = StandMapping(default_template()), TwoCohortMapping(default_template())
+    vectors_one, derived_one = one.model_vectors(v)
+    vectors_two, derived_two = two.model_vectors(v)
+    for name in derived_one:
+        np.testing.assert_allclose(derived_two[name], derived_one[name], rtol=1e-9)
+    shared = [one.model_free.index(f) for f in one.model_free]
+    np.testing.assert_allclose(vectors_two[:, shared], vectors_one, rtol=1e-12)
+    z = np.linspace(0.0, 45.0, 40)
+    np.testing.assert_allclose(
+        two.crown_volume_profile(v, z), one.crown_volume_profile(v, z), rtol=1e-9, atol=1e-14
+    )
+
+
+def test_cover_and_the_dominant_height_follow_the_mixture_of_the_two_storeys(rng):
+    mapping = TwoCohortMapping(default_template())
+    v = _rows(rng)
+    _, derived = mapping.model_vectors(v)
+    heights = np.linspace(0.0, 90.0, 450_001)
+    for i in range(N):
+        pdf, survival = _mixture_grid(mapping, v, i, heights)
+        radius = mapping.template.crown_radius_intercept + v["crown_radius_slope"][i] * heights
+        area = np.trapezoid(pdf * np.pi * radius**2, heights)
+        cover = poisson_stand.cover_from_density(derived["density"][i] * 1e-4, area)
+        assert cover == pytest.approx(v["cover"][i], rel=1e-4)
+        assert derived["mean_height"][i] == pytest.approx(
+            np.trapezoid(pdf * heights, heights), rel=1e-5
+        )
+        tail = min(100.0 / derived["density"][i], 1.0)  # the 100 tallest stems a hectare
+        top = heights >= heights[np.searchsorted(-survival, -tail)]
+        dominant = np.trapezoid((pdf * heights)[top], heights[top]) / np.trapezoid(
+            pdf[top], heights[top]
+        )
+        assert derived["dominant_height"][i] == pytest.approx(dominant, abs=2e-3)
+
+
+def test_the_tallest_stem_of_a_two_storey_stand_follows_the_poisson_law(rng):
+    mapping = TwoCohortMapping(default_template())
+    v = {k: np.repeat(x[:1], 20_000) for k, x in _rows(rng).items()}
+    v["density_m2"] = np.full(20_000, 0.02)
+    area = 300.0
+    tallest = mapping.tallest_in_area(v, area, rng.uniform(size=20_000))
+    for h in np.percentile(tallest[tallest > 0], [10, 50, 90]):
+        _, survival = _mixture_grid(mapping, v, 0, np.array([h]))
+        expected = np.exp(-0.02 * area * survival[0])  # P(no stem above h)
+        assert np.mean(tallest <= h) == pytest.approx(expected, abs=0.015)
+
+
+def test_invalid_lower_storeys_are_rows_the_sampler_rejects(rng):
+    mapping = TwoCohortMapping(default_template())
+    v = _rows(rng)
+    v["cohort2_fraction"][0] = 1.2
+    v["cohort2_top_ratio"][1] = 1.0  # not below the upper storey
+    v["cohort2_sd_ratio"][2] = 0.5  # mean height at zero
+    np.testing.assert_array_equal(mapping.valid(v), [False, False, False, True, True, True])
+
+
+def test_settings_choose_the_cohorts_and_refuse_what_cannot_be_built(tmp_path):
+    space = default_space(
+        {
+            name: Uniform(0.0, 1.0)
+            for name in ("ground_elevation", "baseline", "gain", "noise_sigma")
+        },
+        cohorts=2,
+    )
+    assert set(COHORT2) <= set(space.names)
+    with pytest.raises(ValueError, match="cohorts"):
+        InversionSettings(cohorts=3)
+    with pytest.raises(ValueError, match="tallest stem"):
+        InversionSettings(cohorts="auto", tallest_stem=True)
+    priors = tmp_path / "priors.toml"
+    priors.write_text('[cohort2_top_ratio]\nkind = "uniform"\nlower = 0.2\nupper = 0.6\n')
+    assert InversionSettings.from_priors_file(priors).cohorts == 2

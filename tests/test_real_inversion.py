@@ -1,0 +1,45 @@
+"""Inversions of real shots shipped with the package (GEDI cerrado, LVIS Gabon).
+
+The shots are picked by what their own analysis says (a single mode; the most modes),
+never by identifier. Short chains under the observed-signal discrepancy keep these
+tests to seconds; the full comparison with the products is ``studies/real_inversion.py``.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from lidarinv.inference import InversionSettings, invert_shot
+from lidarinv.io import example_file, iter_observations
+from lidarinv.observe.analyse import analyse
+
+SHORT = InversionSettings(discrepancy_model="observed")
+SHORT = replace(SHORT, sampler=replace(SHORT.sampler, max_steps=1000))
+
+
+def _analysed(name):
+    shots = [(obs, analyse(obs)) for obs in iter_observations(example_file(name))]
+    return [(obs, a) for obs, a in shots if a.status == "ok" and not a.flags]
+
+
+def test_a_single_peak_real_shot_puts_the_ground_at_the_peak_under_a_low_canopy():
+    single = [(obs, a) for obs, a in _analysed("gedi-l1b") if a.n_modes == 1]
+    obs, analysis = min(single, key=lambda pair: pair[1].rh[98])
+    result = invert_shot(obs, SHORT, rng=np.random.default_rng(3))
+    ground = np.median(result.column("ground_elevation"))
+    assert abs(ground - analysis.ground) < 0.3
+    rh98 = np.percentile(result.column("rh98"), [5, 95])
+    assert rh98[1] < 10.0  # a low canopy, not the ground return read as a tall one
+    assert np.median(result.column("gap_cover")) < 0.6
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+def test_a_two_layer_real_shot_is_fitted_with_two_cohorts_when_they_are_available():
+    obs, _ = max(_analysed("lvis-l1b"), key=lambda pair: pair[1].n_modes)
+    result = invert_shot(obs, replace(SHORT, cohorts="auto"), rng=np.random.default_rng(4))
+    choice = result.diagnostics["cohorts"]
+    assert choice["chosen"] == 2
+    assert choice["dic"][2] < choice["dic"][1] - 10.0
+    assert result.settings["cohorts"] == 2
+    assert "cohort2_fraction" in result.parameter_names
