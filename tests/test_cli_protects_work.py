@@ -169,6 +169,8 @@ def test_batch_takes_max_steps_walkers_and_instrument():
     assert (settings.sampler.max_steps, settings.sampler.n_walkers) == (300, 40)
     assert settings.instrument == "lvis"
     assert batch_settings(build_parser().parse_args(["batch", "f.h5", "-o", "r.h5"])) is None
+    auto = build_parser().parse_args(["batch", "f.h5", "-o", "r.h5", "--cohorts", "auto"])
+    assert batch_settings(auto).cohorts == "auto"
 
 
 # -- batch: failures in the exit status, shots not found ---------------------------------
