@@ -109,16 +109,17 @@ def lognormal_heights(rng, side):
 
 
 def two_storeys(rng, side):
-    """An overstorey (mean 16–28 m, sd 1–3 m) over a lower storey (mean 4–10 m, sd
-    0.5–2 m) holding 30–70 % of the stems, on a Poisson pattern."""
+    """An overstorey (mean 18–30 m, sd 1–3 m) over a lower storey (mean 4–9 m, sd
+    0.5–1.5 m) holding 30–70 % of the stems, on a Poisson pattern: the storeys' means
+    lie at least 9 m and 4.5 of their sds apart, so the height histogram has two modes."""
     params = _canopy(
         rng,
         density=rng.uniform(400.0, 1500.0),
-        height_mean=rng.uniform(16.0, 28.0),
+        height_mean=rng.uniform(18.0, 30.0),
         height_sd=rng.uniform(1.0, 3.0),
         cohort2_fraction=rng.uniform(0.3, 0.7),
-        cohort2_height_mean=rng.uniform(4.0, 10.0),
-        cohort2_height_sd=rng.uniform(0.5, 2.0),
+        cohort2_height_mean=rng.uniform(4.0, 9.0),
+        cohort2_height_sd=rng.uniform(0.5, 1.5),
     )
     return params, realise(params, side, rng)
 
@@ -149,15 +150,15 @@ def emergent_tree(rng, side):
 
 
 def clumped_stems(rng, side):
-    """Stems of a Thomas cluster process (4–12 stems a cluster, cluster sd 1.5–4 m),
-    one truncated-normal cohort (mean 8–25 m, sd 1–4 m)."""
+    """Stems of a Thomas cluster process (5–15 stems a cluster, cluster sd 1–3 m), one
+    truncated-normal cohort (mean 8–25 m, sd 1–4 m)."""
     params = _canopy(
         rng,
         density=rng.uniform(200.0, 1500.0),
         height_mean=rng.uniform(8.0, 25.0),
         height_sd=rng.uniform(1.0, 4.0),
     )
-    options = {"cluster_size": rng.uniform(4.0, 12.0), "cluster_sd": rng.uniform(1.5, 4.0)}
+    options = {"cluster_size": rng.uniform(5.0, 15.0), "cluster_sd": rng.uniform(1.0, 3.0)}
     return params, realise(params, side, rng, pattern="thomas", **options)
 
 
