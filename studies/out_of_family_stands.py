@@ -47,6 +47,8 @@ Quantities of the stand's distribution (PAI, mean height, ``top_height``) are le
 (NaN), so they drop out of the coverage tables.
 """
 
+from functools import partial
+
 import numpy as np
 
 from forward.instrument import instrument_preset
@@ -84,24 +86,13 @@ def _canopy(rng, **stand) -> StandParams:
     return StandParams(**{**fields, **stand})
 
 
-def weibull_heights(rng, side):
-    """One cohort of Weibull heights (mean 8–25 m, sd 2–6 m) on a Poisson pattern."""
+def skewed_heights(rng, side, family):
+    """One cohort of Weibull or lognormal heights (``family``; mean 8–25 m, sd 2–6 m) on a
+    Poisson pattern."""
     params = _canopy(
         rng,
         density=rng.uniform(200.0, 1500.0),
-        height_family="weibull",
-        height_mean=rng.uniform(8.0, 25.0),
-        height_sd=rng.uniform(2.0, 6.0),
-    )
-    return params, realise(params, side, rng)
-
-
-def lognormal_heights(rng, side):
-    """One cohort of lognormal heights (mean 8–25 m, sd 2–6 m) on a Poisson pattern."""
-    params = _canopy(
-        rng,
-        density=rng.uniform(200.0, 1500.0),
-        height_family="lognormal",
+        height_family=family,
         height_mean=rng.uniform(8.0, 25.0),
         height_sd=rng.uniform(2.0, 6.0),
     )
@@ -195,8 +186,8 @@ def dense_stand(rng, side):
 #: the ground reflectance, ρv and the understory, ``stand`` the stem map on a square plot
 #: of the given side (m) seen at its centre.
 STAND_KINDS = {
-    "weibull": weibull_heights,
-    "lognormal": lognormal_heights,
+    "weibull": partial(skewed_heights, family="weibull"),
+    "lognormal": partial(skewed_heights, family="lognormal"),
     "two-storey": two_storeys,
     "emergent": emergent_tree,
     "clumped": clumped_stems,
