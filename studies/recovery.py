@@ -191,6 +191,7 @@ def one_shot(task):
         return row
     row["seconds"] = time.perf_counter() - start
     row["converged"] = result.converged
+    row["flags"] = list(result.flags)
     row["max_tau"] = float(np.max(result.diagnostics["tau"]))
     row["start_modes"] = int(result.diagnostics["start_modes"])
     row["log_prob"] = {"best_in_chain": result.diagnostics["map_log_prob"]}
@@ -325,12 +326,10 @@ def plot(rows, folder):
     import matplotlib.pyplot as plt
 
     good = [r for r in rows if "posterior" in r]
-    fig, axes = plt.subplots(1, len(QUANTITIES), figsize=(3.2 * len(QUANTITIES), 3.4))
-    for ax, name in zip(axes, QUANTITIES):
+    names = [name for name in QUANTITIES if _known(good, name)]
+    fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.4), squeeze=False)
+    for ax, name in zip(axes[0], names):
         known = _known(good, name)
-        if not known:
-            ax.set_axis_off()
-            continue
         t = np.array([r["truth"][name] for r in known])
         q = {
             k: np.array([r["posterior"][name][k] for r in known]) for k in ("p05", "median", "p95")
@@ -346,7 +345,7 @@ def plot(rows, folder):
         ax.set_xlabel(f"true {name}")
         ax.set_ylabel("posterior median, 90 %")
     if any("kind" in r for r in good):
-        axes[0].legend(fontsize=6)
+        axes[0, 0].legend(fontsize=6)
     fig.tight_layout()
     fig.savefig(folder / "truth_vs_posterior.png", dpi=100)
     plt.close(fig)
