@@ -32,6 +32,7 @@ SOURCES = {
     "expected-model-accuracy": "stand_model_runtime_vs_error/summary.json",
     "inversion-speed": "inversion_speed{tag}/summary.json",
     "calibration": "recovery{tag}/summary.json",
+    "calibration-out-of-family": "recovery{tag}/summary.json",
     "recovery": "recovery{tag}/summary.json",
     "batch-throughput": "batch_throughput.json",
     "scaling": "scaling/scaling.json",

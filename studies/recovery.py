@@ -4,8 +4,9 @@ Each footprint is drawn from random stand parameters, realised as an **explicit*
 stand, simulated with the explicit 3-D engine and observed with GEDI-like noise; the
 inversion then uses the expected-waveform model, so the random tree arrangement is a
 real model error. ``--inverse-crime`` observes the expected waveform instead. For cover,
-PAI, top height (the height distribution's upper end), the footprint's tallest stem
-(explicit stands only), mean height and ground elevation the study reports the coverage of the
+PAI, top height (the height distribution's upper end), the footprint's tallest stem,
+RH98 and gap cover (explicit stands only), mean height and ground elevation the study
+reports the coverage of the
 68 % and 90 % intervals (with the binomial 95 % range expected at that sample size), the
 bias and RMSE of the posterior median, and the same errors of the direct metrics of
 ``lidarinv.observe.analyse`` on the same waveforms (canopy height above the ground peak,
@@ -13,12 +14,16 @@ gap-based cover). It also counts the shots whose chain never came within 5 of th
 parameters' log-posterior: with ``--inverse-crime`` those are search failures (not counted
 under the default ``realisations`` discrepancy, whose covariance is drawn in each run;
 ``--inverse-crime --discrepancy-model observed --discrepancy 0`` tests the sampler alone).
+``--truth out-of-family`` draws the stands from outside the model family instead (Weibull
+and lognormal heights, two storeys, an emergent tree, clumped stems, sparse and dense
+stands: studies/out_of_family_stands.py, whose docstring says which footprint truths
+they are compared on) and reports the coverage per kind as well (``by_kind``).
 
     python studies/recovery.py [--n 200] [--max-steps 4000] [--workers 2]
                                [--inverse-crime] [--discrepancy 0.2]
                                [--discrepancy-model realisations] [--seed 1] [--tag _NAME]
                                [--map-search CANDIDATES STARTS SCREEN POLISH]
-                               [--truth study|prior] [--mode-window 5] [--sample-gain]
+                               [--truth study|prior|out-of-family] [--mode-window 5] [--sample-gain]
                                [--ground-prior-sd M]
                                [--realisations COUNT SHRINKAGE BALL]
                                [--priors studies/study_priors.toml]
@@ -57,9 +62,11 @@ from lidarinv.observe.analyse import analyse  # noqa: E402
 
 QUANTITIES = (
     "cover",
+    "gap_cover",
     "pai",
     "top_height",
     "footprint_top_height",
+    "rh98",
     "mean_height",
     "ground_elevation",
     "gain",
@@ -148,14 +155,27 @@ MAP_SEARCH_FIELDS = ("candidates", "starts", "screen_iterations", "polish")
 #: Stand draws by name (``--truth``).
 RECIPES = {"study": draw_recipe, "prior": draw_recipe_from_prior}
 
+#: ``--truth`` of stands from outside the model family (studies/out_of_family_stands.py).
+OUT_OF_FAMILY = "out-of-family"
+
+
+def draw_shot(index, rng, explicit, settings, truth):
+    """The observation of shot ``index`` for a ``--truth`` choice."""
+    if truth == OUT_OF_FAMILY:  # a sibling module: imported here, as the study runs
+        from out_of_family_stands import out_of_family_shot
+
+        return out_of_family_shot(rng, index)
+    return synthetic_shot(RECIPES[truth](rng, settings), rng, explicit=explicit, shot_id=index)
+
 
 def one_shot(task):
     index, seed, explicit, settings, truth = task
     rng = np.random.default_rng(seed)
-    recipe = RECIPES[truth](rng, settings)
-    obs = synthetic_shot(recipe, rng, explicit=explicit, shot_id=index)
-    truth = dict(obs.truth)
-    row = {"shot": index, "truth": {k: truth[k] for k in (*QUANTITIES, "rho_ratio")}}
+    obs = draw_shot(index, rng, explicit, settings, truth)
+    truth = {k: float(obs.truth.get(k, np.nan)) for k in (*QUANTITIES, "rho_ratio")}
+    row = {"shot": index, "truth": truth}
+    if "kind" in obs.truth:
+        row["kind"] = obs.truth["kind"]
     direct = analyse(obs)
     row["direct"] = {
         "status": direct.status,
@@ -171,6 +191,7 @@ def one_shot(task):
         return row
     row["seconds"] = time.perf_counter() - start
     row["converged"] = result.converged
+    row["flags"] = list(result.flags)
     row["max_tau"] = float(np.max(result.diagnostics["tau"]))
     row["start_modes"] = int(result.diagnostics["start_modes"])
     row["log_prob"] = {"best_in_chain": result.diagnostics["map_log_prob"]}
@@ -232,7 +253,9 @@ def _calibration(rows, name):
     }
 
 
-def summarise(rows):
+def summarise(rows, by_kind=True):
+    """Coverage, calibration and errors per quantity over the inverted shots; with
+    ``by_kind``, the same for each stand kind of rows that name one (``by_kind``)."""
     good = [r for r in rows if "posterior" in r]
     n = len(good)
     out = {"n_shots": len(rows), "n_inverted": n, "quantities": {}}
@@ -287,6 +310,12 @@ def summarise(rows):
     out["converged_fraction"] = float(np.mean([r["converged"] for r in good]))
     out["multi_mode_start_fraction"] = float(np.mean([r["start_modes"] > 1 for r in good]))
     out["median_seconds_per_shot"] = float(np.median([r["seconds"] for r in good]))
+    kinds = list(dict.fromkeys(r["kind"] for r in rows if "kind" in r))
+    if by_kind and kinds:
+        out["by_kind"] = {
+            kind: summarise([r for r in rows if r.get("kind") == kind], by_kind=False)
+            for kind in kinds
+        }
     return out
 
 
@@ -297,22 +326,26 @@ def plot(rows, folder):
     import matplotlib.pyplot as plt
 
     good = [r for r in rows if "posterior" in r]
-    fig, axes = plt.subplots(1, len(QUANTITIES), figsize=(3.2 * len(QUANTITIES), 3.4))
-    for ax, name in zip(axes, QUANTITIES):
+    names = [name for name in QUANTITIES if _known(good, name)]
+    fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.4), squeeze=False)
+    for ax, name in zip(axes[0], names):
         known = _known(good, name)
-        if not known:
-            ax.set_axis_off()
-            continue
         t = np.array([r["truth"][name] for r in known])
         q = {
             k: np.array([r["posterior"][name][k] for r in known]) for k in ("p05", "median", "p95")
         }
-        ax.errorbar(t, q["median"], yerr=[q["median"] - q["p05"], q["p95"] - q["median"]],
-                    fmt="o", ms=3, lw=0.7, alpha=0.7)  # fmt: skip
+        kind = np.array([r.get("kind", "") for r in known])
+        for label in dict.fromkeys(kind):  # one colour per stand kind, where rows name one
+            i = kind == label
+            ax.errorbar(t[i], q["median"][i],
+                        yerr=[q["median"][i] - q["p05"][i], q["p95"][i] - q["median"][i]],
+                        fmt="o", ms=3, lw=0.7, alpha=0.7, label=label or None)  # fmt: skip
         span = [min(t.min(), q["p05"].min()), max(t.max(), q["p95"].max())]
         ax.plot(span, span, "k--", lw=0.8)
         ax.set_xlabel(f"true {name}")
         ax.set_ylabel("posterior median, 90 %")
+    if any("kind" in r for r in good):
+        axes[0, 0].legend(fontsize=6)
     fig.tight_layout()
     fig.savefig(folder / "truth_vs_posterior.png", dpi=100)
     plt.close(fig)
@@ -335,8 +368,9 @@ def main():
     parser.add_argument(
         "--truth",
         default="study",
-        choices=sorted(RECIPES),
-        help="stands from the study's ranges or from the inversion's structural prior",
+        choices=sorted([*RECIPES, OUT_OF_FAMILY]),
+        help="stands from the study's ranges, from the inversion's structural prior, or "
+        "from outside the model family (explicit stands of studies/out_of_family_stands.py)",
     )
     parser.add_argument(
         "--mode-window",
@@ -379,6 +413,8 @@ def main():
         "the ranges the study's stands are drawn from",
     )
     args = parser.parse_args()
+    if args.truth == OUT_OF_FAMILY and args.inverse_crime:
+        parser.error("--inverse-crime has no out-of-family truth")
     choices = dict(
         discrepancy=args.discrepancy,
         discrepancy_model=args.discrepancy_model,

@@ -102,3 +102,29 @@ def test_validation_pages_turn_a_summary_into_a_table_and_figure(tmp_path):
     page = (tmp_path / "generated" / "calibration.rst").read_text()
     assert "0.667" in page and "0.889" in page and "python studies/recovery.py --n 10" in page
     assert (tmp_path / "generated" / "calibration.png").stat().st_size > 5000
+
+
+def test_validation_pages_show_out_of_family_coverage_per_stand_kind(tmp_path):
+    from validation.generate import write_validation_pages
+
+    (tmp_path / "data").mkdir()
+    quantities = {"cover": {"n": 3, "coverage_68": 0.333, "coverage_90": 0.667}}
+    part = {"n_shots": 3, "n_inverted": 3, "converged_fraction": 1.0,
+            "binomial_95_range": {"90": [0.333, 1.0]}}  # fmt: skip
+    summary = {
+        **part,
+        "n_shots": 6,
+        "n_inverted": 5,
+        "truth": "out-of-family",
+        "quantities": quantities,
+        "by_kind": {
+            "emergent": {**part, "quantities": {"cover": {"coverage_90": 0.123}}},
+            "sparse": {**part, "n_inverted": 2, "quantities": {"cover": {"coverage_90": 0.5}}},
+        },
+    }
+    record = {"key": "calibration-out-of-family", "source": "s", "command": "c",
+              "published": "2025-01-01", "commit": "abc", "summary": summary}  # fmt: skip
+    (tmp_path / "data" / "calibration-out-of-family.json").write_text(json.dumps(record))
+    page = {p.stem: p for p in write_validation_pages(tmp_path)}["calibration"].read_text()
+    assert "Explicit stands from outside the model family" in page
+    assert "emergent" in page and "0.123" in page and "2 of 3" in page

@@ -126,3 +126,25 @@ def test_breakdown_by_footprint_gap(monkeypatch):
     for row in rows:
         row["truth"]["footprint_top_height"] = float("nan")
     assert sum(b["n"] for b in breakdown(rows, "top_height")["footprint_gap"]) == 0
+
+
+def test_out_of_family_rows_are_summarised_per_stand_kind(recovery):
+    """Rows naming a stand kind get a coverage table per kind beside the pooled one; a
+    refused shot counts in its kind's shots but not its inverted ones."""
+    rng = np.random.default_rng(6)
+    rows = []
+    for kind, width in (("emergent", 0.1), ("sparse", 1.0)):  # intervals too narrow / right
+        for row in gaussian_rows(rng, 400, width):
+            row.update(kind=kind, direct={"status": "no ground peak"}, converged=True,
+                       start_modes=1, seconds=1.0, log_prob={"truth": np.nan, "best_in_chain": 0})  # fmt: skip
+            rows.append(row)
+    rows.append({"kind": "sparse", "error": "ground outside window"})
+    out = recovery.summarise(rows)
+    emergent, sparse = out["by_kind"]["emergent"], out["by_kind"]["sparse"]
+    assert (sparse["n_shots"], sparse["n_inverted"], out["n_inverted"]) == (401, 400, 800)
+    assert sparse["quantities"]["cover"]["coverage_90"] == pytest.approx(0.9, abs=0.04)
+    assert emergent["quantities"]["cover"]["coverage_90"] < 0.3
+    pooled = out["quantities"]["cover"]["coverage_90"]
+    assert pooled == pytest.approx(np.mean([emergent["quantities"]["cover"]["coverage_90"],
+                                            sparse["quantities"]["cover"]["coverage_90"]]))  # fmt: skip
+    assert "by_kind" not in sparse
