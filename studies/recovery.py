@@ -159,19 +159,21 @@ RECIPES = {"study": draw_recipe, "prior": draw_recipe_from_prior}
 OUT_OF_FAMILY = "out-of-family"
 
 
-def draw_shot(index, rng, explicit, settings, truth):
-    """The observation of shot ``index`` for a ``--truth`` choice."""
+def draw_shot(index, rng, explicit, settings, truth, kinds=None):
+    """The observation of shot ``index`` for a ``--truth`` choice (out of the family: of
+    the stand ``kinds`` in turn, all if None)."""
     if truth == OUT_OF_FAMILY:  # a sibling module: imported here, as the study runs
         from out_of_family_stands import out_of_family_shot
 
-        return out_of_family_shot(rng, index)
+        kind = None if not kinds else kinds[index % len(kinds)]
+        return out_of_family_shot(rng, index, kind)
     return synthetic_shot(RECIPES[truth](rng, settings), rng, explicit=explicit, shot_id=index)
 
 
 def one_shot(task):
-    index, seed, explicit, settings, truth = task
+    index, seed, explicit, settings, truth, kinds = task
     rng = np.random.default_rng(seed)
-    obs = draw_shot(index, rng, explicit, settings, truth)
+    obs = draw_shot(index, rng, explicit, settings, truth, kinds)
     truth = {k: float(obs.truth.get(k, np.nan)) for k in (*QUANTITIES, "rho_ratio")}
     row = {"shot": index, "truth": truth}
     if "kind" in obs.truth:
@@ -193,6 +195,7 @@ def one_shot(task):
     row["converged"] = result.converged
     row["flags"] = list(result.flags)
     row["max_tau"] = float(np.max(result.diagnostics["tau"]))
+    row["cohorts"] = result.settings["cohorts"]
     row["start_modes"] = int(result.diagnostics["start_modes"])
     row["log_prob"] = {"best_in_chain": result.diagnostics["map_log_prob"]}
     row["log_prob"]["truth"] = truth_log_prob(obs, settings)
@@ -204,7 +207,7 @@ def truth_log_prob(obs, settings) -> float:
     """Log-posterior (sampling coordinates) at the true parameters: a chain that never
     comes near it, with the data drawn from the model itself, searched the wrong basin.
     NaN under the ``realisations`` discrepancy, whose covariance is drawn in the run."""
-    if settings.discrepancy_model == SIMULATED:
+    if settings.discrepancy_model == SIMULATED or settings.cohorts != 1:
         return float("nan")
     problem = build_problem(obs, settings)
     space = problem.space
@@ -412,6 +415,8 @@ def main():
         help="priors TOML (as `lidarinv invert --priors`); e.g. studies/study_priors.toml, "
         "the ranges the study's stands are drawn from",
     )
+    parser.add_argument("--cohorts", choices=("1", "2", "auto"), help="height cohorts")
+    parser.add_argument("--kinds", nargs="+", help="out-of-family stand kinds (default: all)")
     args = parser.parse_args()
     if args.truth == OUT_OF_FAMILY and args.inverse_crime:
         parser.error("--inverse-crime has no out-of-family truth")
@@ -437,7 +442,15 @@ def main():
         sampler = replace(sampler, **dict(zip(MAP_SEARCH_FIELDS, args.map_search)))
     settings = replace(settings, sampler=sampler)
     seeds = np.random.SeedSequence(args.seed).generate_state(args.n)
-    tasks = [(i, int(s), not args.inverse_crime, settings, args.truth) for i, s in enumerate(seeds)]
+    if args.cohorts is not None:
+        settings = replace(
+            settings, cohorts=args.cohorts if args.cohorts == "auto" else int(args.cohorts)
+        )
+    kinds = tuple(args.kinds) if args.kinds else None
+    tasks = [
+        (i, int(s), not args.inverse_crime, settings, args.truth, kinds)
+        for i, s in enumerate(seeds)
+    ]
     folder = (
         Path(__file__).parent
         / "output"
@@ -458,6 +471,8 @@ def main():
             "explicit_realisations": not args.inverse_crime,
             "max_steps": args.max_steps,
             "truth": args.truth,
+            "kinds": args.kinds,
+            "cohorts": settings.cohorts,
             "discrepancy": args.discrepancy,
             "discrepancy_model": args.discrepancy_model,
             "realisations": asdict(settings.realisations),

@@ -144,22 +144,27 @@ def _select_cohorts(observation, settings, rng, progress, backend_path) -> Inver
 
     The one-cohort run comes first. Where its posterior-predictive check finds a misfit
     (p below :data:`.collect.MISFIT_P_VALUE`) the shot is inverted again with a lower
-    storey, with its own discrepancy, and the model with the lower DIC is kept: both are
-    predictive models of the same samples. The result records the DICs and the choice,
+    storey under the same likelihood (the one-cohort run's discrepancy, simulated once:
+    DICs under two simulated covariances would compare the covariances too), and the
+    stand model with the lower DIC is kept. The result records the DICs and the choice,
     and a flag where they differ by less than :data:`DIC_UNDECIDED` (the data leave both
     explanations).
     """
     group = observation.shot_id
-    problem, start, report = prepare_problem(observation, replace(settings, cohorts=1), rng)
-    results = {1: _sample(problem, start, report, rng, progress, backend_path, group)}
+    one, start, report = prepare_problem(observation, replace(settings, cohorts=1), rng)
+    results = {1: _sample(one, start, report, rng, progress, backend_path, group)}
     p_value = results[1].diagnostics["predictive_p_value"]
     if p_value >= MISFIT_P_VALUE:
         result = results[1]
         result.diagnostics["cohorts"] = {"chosen": 1, "dic": {1: result.diagnostics["dic"]}}
         return result
-    problem, start, report = prepare_problem(observation, replace(settings, cohorts=2), rng)
+    two = build_problem(observation, replace(settings, cohorts=2))
+    shared = one.log_posterior.likelihood.fixed_discrepancy
+    if shared is not None:
+        two = two.with_fixed_discrepancy(shared)
     group = f"{observation.shot_id}_cohorts2"
-    results[2] = _sample(problem, start, report, rng, progress, backend_path, group)
+    results[2] = _sample(two, None, {"notes": list(report["notes"])}, rng, progress,
+                         backend_path, group)  # fmt: skip
     dic = {k: r.diagnostics["dic"] for k, r in results.items()}
     chosen = 2 if dic[2] < dic[1] else 1
     result = results[chosen]
