@@ -239,40 +239,34 @@ def _footprint_sums(
     return returns[:n_layers], volume, foliage, ground[:n_ground]
 
 
-def _chord(nodes, lo, hi, centre, half):
+def _chord(nodes, lo, hi, centre, half, start, stop):
     """Range [start, stop) of the nodes among ``nodes[lo:hi]`` (ascending) that lie
-    within ``half`` of ``centre`` (two bisections)."""
-    a, b = lo, hi
-    while a < b:
-        m = (a + b) // 2
-        if nodes[m] < centre - half:
-            a = m + 1
-        else:
-            b = m
-    start, b = a, hi
-    while a < b:
-        m = (a + b) // 2
-        if nodes[m] <= centre + half:
-            a = m + 1
-        else:
-            b = m
-    return start, a
+    within ``half`` of ``centre``, stepped from the range ``start, stop`` of the row
+    before (a crown's chords change little from row to row)."""
+    while start > lo and nodes[start - 1] >= centre - half:
+        start -= 1
+    while start < hi and nodes[start] < centre - half:
+        start += 1
+    stop = max(stop, start)
+    while stop < hi and nodes[stop] <= centre + half:
+        stop += 1
+    while stop > start and nodes[stop - 1] > centre + half:
+        stop -= 1
+    return start, stop
 
 
 def _crown_depth_row(row, nodes, start, stop, dy0, dx2, inv_r, r2, depth_per_m, extent, z):
     """Add one crown's optical depth to ``row[start:stop]``, columns ``nodes - dy0``
     across from its stem (``dx2`` the squared distance along the other axis); ``z`` =
-    (base, length, ground gradient along the row, ground height at node 0 of the row,
-    sloped) cuts the crown at the local ground."""
-    base, length, slope, ground0, sloped = z
+    (base, length, ground gradient along the row, ground height at node 0 of the row)
+    cuts the crown at the local ground (−inf on flat ground)."""
+    base, length, slope, ground0 = z
     for j in range(start, stop):
         dy = nodes[j] - dy0
         d2 = dx2 + dy * dy
         s_low, s_high = extent(min(np.sqrt(d2) * inv_r, 1.0))
-        path = (s_high - s_low) * length
-        if sloped:  # foliage below the local ground surface does not exist
-            z_ground = ground0 + slope * nodes[j]
-            path = max(base + s_high * length, z_ground) - max(base + s_low * length, z_ground)
+        z_ground = ground0 + slope * nodes[j]  # foliage below the ground does not exist
+        path = max(base + s_high * length, z_ground) - max(base + s_low * length, z_ground)
         row[j] += depth_per_m * path * (d2 < r2)
 
 
@@ -287,11 +281,12 @@ def _ground_gap(
     depth = np.zeros((n, n))
     for c in range(x.size):
         r_c2, inv_r = radius[c] * radius[c], 1.0 / radius[c]
+        start = stop = (first[c, 1] + last[c, 1] + 1) // 2
         for i in range(first[c, 0], last[c, 0] + 1):
             dx2 = (nodes[i] - x[c]) ** 2
             half = np.sqrt(max(r_c2 - dx2, 0.0)) * (1.0 + 1e-9)  # the chord, padded
-            start, stop = _chord(nodes, first[c, 1], last[c, 1] + 1, y[c], half)
-            z = (base[c], length[c], gy, gx * nodes[i], sloped)
+            start, stop = _chord(nodes, first[c, 1], last[c, 1] + 1, y[c], half, start, stop)
+            z = (base[c], length[c], gy, gx * nodes[i] if sloped else -np.inf)
             row, k, a = depth[i], code[c], ext[c]
             if k == _CONE:  # one loop per shape, so that each compiles to straight code
                 _crown_depth_row(row, nodes, start, stop, y[c], dx2, inv_r, r_c2, a, _cone, z)
@@ -305,13 +300,16 @@ def _ground_gap(
                 _crown_depth_row(row, nodes, start, stop, y[c], dx2, inv_r, r_c2, a, _cylinder, z)
     total = 0.0
     ground = np.zeros(n_ground + 1)
+    start = stop = n // 2
     for i in range(n):
-        start, stop = _chord(nodes, 0, n, 0.0, np.sqrt(max(r2 - nodes[i] * nodes[i], 0.0)))
+        half = np.sqrt(max(r2 - nodes[i] * nodes[i], 0.0))
+        start, stop = _chord(nodes, 0, n, 0.0, half, start, stop)
         row = 0.0
-        for j in range(start, stop):
+        for j in range(max(start - 1, 0), min(stop + 1, n)):  # the disc's test decides
             if nodes[i] * nodes[i] + nodes[j] * nodes[j] > r2:
                 continue
-            gap = weights[j] * np.exp(-depth[i, j])
+            tau = depth[i, j]
+            gap = weights[j] * np.exp(-tau) if tau > 0.0 else weights[j]
             row += gap
             if sloped:
                 z_ground = gx * nodes[i] + gy * nodes[j]
