@@ -239,6 +239,11 @@ def _footprint_sums(
     return returns[:n_layers], volume, foliage, ground[:n_ground]
 
 
+#: Ground height (m) that cuts no crown: finite, since the ground pass is compiled with
+#: fast math (which assumes no infinities).
+_FAR_BELOW = -1e300
+
+
 def _chord(nodes, lo, hi, centre, half, start, stop):
     """Range [start, stop) of the nodes among ``nodes[lo:hi]`` (ascending) that lie
     within ``half`` of ``centre``, stepped from the range ``start, stop`` of the row
@@ -259,7 +264,7 @@ def _crown_depth_row(row, nodes, start, stop, dy0, dx2, inv_r, r2, depth_per_m, 
     """Add one crown's optical depth to ``row[start:stop]``, columns ``nodes - dy0``
     across from its stem (``dx2`` the squared distance along the other axis); ``z`` =
     (base, length, ground gradient along the row, ground height at node 0 of the row)
-    cuts the crown at the local ground (−inf on flat ground)."""
+    cuts the crown at the local ground (:data:`_FAR_BELOW` on flat ground)."""
     base, length, slope, ground0 = z
     for j in range(start, stop):
         dy = nodes[j] - dy0
@@ -286,7 +291,7 @@ def _ground_gap(
             dx2 = (nodes[i] - x[c]) ** 2
             half = np.sqrt(max(r_c2 - dx2, 0.0)) * (1.0 + 1e-9)  # the chord, padded
             start, stop = _chord(nodes, first[c, 1], last[c, 1] + 1, y[c], half, start, stop)
-            z = (base[c], length[c], gy, gx * nodes[i] if sloped else -np.inf)
+            z = (base[c], length[c], gy, gx * nodes[i] if sloped else _FAR_BELOW)
             row, k, a = depth[i], code[c], ext[c]
             if k == _CONE:  # one loop per shape, so that each compiles to straight code
                 _crown_depth_row(row, nodes, start, stop, y[c], dx2, inv_r, r_c2, a, _cone, z)
