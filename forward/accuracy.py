@@ -11,8 +11,21 @@ resolution:
   s = C·ε^(2/3)·R·N^(1/3) = C·ε^(2/3)·σf^(2/3)·R^(1/3), with C measured on the stands of
   ``studies/forward_runtime_vs_error.py``. Where fewer crowns share the footprint's
   weight, N is their effective number (Σω)²/Σω² and the columns are closer.
+- Crown shapes. The spacing is set by the roughest crown edge in the footprint: a
+  column's path through a cone falls to zero at its edge (a kink in the path length),
+  through an ellipsoid steeply, through a cylinder at once (a jump); so footprints
+  under cones alone take columns :data:`EDGE_SPACING_FACTOR` times wider, up to an
+  eighth of the crown radius.
+- Ground. The ground return ρg·P̄(0) needs only each column's whole optical depth, but
+  its relative error is larger than the waveform's where the canopy is closed (P̄(0)
+  small): the ground has columns of its own, at the spacing of the same law with the
+  constant :data:`GROUND_SPACING_CONSTANT` (:meth:`AccuracySettings.ground_spacing_for`),
+  and the canopy returns are scaled so that the energies still add up.
 - Truncation. The footprint weight left out beyond the truncation radius is a tenth of
-  the tolerance (conventions, "Footprint").
+  the tolerance (conventions, "Footprint"), and :data:`GROUND_TRUNCATION` of it for the
+  ground's columns:
+  the weight left out errs on the ground gap by about that weight times the gap at the
+  rim over P̄(0), large where the canopy over the beam centre is closed.
 - Layers. A fine layer spreads its return evenly over its thickness h; after the pulse
   that costs about (h/σz)²/200 in relative L1 (measured for GEDI and SLICER pulses), so
   the layers are made thin enough for it to stay below an eighth of the tolerance, and
@@ -27,11 +40,34 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .crowns import SHAPE_NAMES
+
 #: Relative L1 error the default settings aim for.
 DEFAULT_TOLERANCE = 3e-3
 
 #: C in s = C·ε^(2/3)·σf^(2/3)·R^(1/3) (m^0 overall: s, σf and R in m).
 SPACING_CONSTANT = 3.0
+
+#: The same constant for the columns of the ground gap: half that of the profiles, since
+#: at the profiles' spacing the ground gap's relative error reaches 1 % under closed
+#: canopies, where P̄(0) is small (measured in ``studies/forward_runtime_vs_error.py``).
+GROUND_SPACING_CONSTANT = 1.5
+
+#: Truncation tolerance of the ground's columns, as a fraction of ``tolerance``: the
+#: weight w left out errs on the ground gap by about w·(P at the rim)/P̄(0), which
+#: approaches 0.1 % under the closed canopies of the study at w = 3e-5 (measured).
+GROUND_TRUNCATION = 0.003
+
+#: Column spacing factor of a footprint whose crowns all have this shape (the smallest
+#: factor among the footprint's crowns applies). Cone edges are kinks of the path
+#: length, not steep or sudden: the dense cone stands of the study meet the tolerance
+#: with columns 1.4 times wider.
+EDGE_SPACING_FACTOR = {"cone": 1.4, "ellipsoid": 1.0, "hemi-ellipsoid": 1.0, "cylinder": 1.0}
+
+#: Widest spacing, as a fraction of the crown radius, that :data:`EDGE_SPACING_FACTOR`
+#: may widen the columns to: a kink's error stays small only while several columns cross
+#: the crown's edge (at tolerance 1e-2 the dense cone stands leave no room to widen).
+EDGE_RESOLUTION = 1.0 / 8.0
 
 #: Truncation tolerance of the per-crown quadrature (``scheme == "crowns"``).
 CROWN_SCHEME_TRUNCATION = 1e-3
@@ -51,7 +87,8 @@ class AccuracySettings:
         grid, which stay accurate where crowns overlap.
     truncation_tolerance : float, optional
         Footprint weight left out beyond the truncation radius; by default a tenth of
-        ``tolerance`` (at most 1e-3), or 1e-3 for the per-crown quadrature.
+        ``tolerance`` (at most 1e-3; :data:`GROUND_TRUNCATION` of it for the ground's columns,
+        :attr:`ground_tolerance`), or 1e-3 for the per-crown quadrature.
     vertical_oversampling : int, optional
         Fine layers per digitiser bin; by default from ``tolerance`` (layers at most
         σz/4 thick).
@@ -120,15 +157,39 @@ class AccuracySettings:
             return CROWN_SCHEME_TRUNCATION
         return min(0.1 * self.tolerance, 1e-3)
 
-    def column_spacing_for(self, footprint_sigma, crown_radius, crowns=np.inf) -> float:
+    @property
+    def ground_tolerance(self) -> float:
+        """Footprint weight left out beyond the truncation radius of the ground gap's
+        columns: :data:`GROUND_TRUNCATION` times ``tolerance`` (at most 1e-3), or
+        ``truncation_tolerance`` where given."""
+        if self.truncation_tolerance is not None or self.scheme == "crowns":
+            return self.footprint_tolerance
+        return min(GROUND_TRUNCATION * self.tolerance, 1e-3)
+
+    def column_spacing_for(self, footprint_sigma, crown_radius, crowns=np.inf, shapes=()) -> float:
         """Column spacing (m) at the beam centre for a footprint of σf (m) under crowns
         of typical radius ``crown_radius`` (m), of which about ``crowns`` share the
-        footprint's weight (fewer than (σf/R)² average their edge errors less)."""
+        footprint's weight (fewer than (σf/R)² average their edge errors less), with
+        shape codes ``shapes`` (:data:`EDGE_SPACING_FACTOR`)."""
         if self.column_spacing is not None:
             return float(self.column_spacing)
+        factor = min((EDGE_SPACING_FACTOR[SHAPE_NAMES[c]] for c in set(shapes)), default=1.0)
+        spacing = self._spacing(SPACING_CONSTANT, footprint_sigma, crown_radius, crowns)
+        return min(factor * spacing, max(spacing, EDGE_RESOLUTION * crown_radius))
+
+    def ground_spacing_for(self, footprint_sigma, crown_radius, crowns=np.inf) -> float:
+        """Column spacing (m) at the beam centre of the ground gap's own columns (the
+        arguments of :meth:`column_spacing_for`); a given ``column_spacing`` serves
+        both."""
+        if self.column_spacing is not None:
+            return float(self.column_spacing)
+        return self._spacing(GROUND_SPACING_CONSTANT, footprint_sigma, crown_radius, crowns)
+
+    def _spacing(self, constant, footprint_sigma, crown_radius, crowns):
+        """s = constant·ε^(2/3)·R·N^(1/3), N = min((σf/R)², ``crowns``)."""
         radius = max(crown_radius, 1e-6)
         averaged = min(footprint_sigma / radius, np.sqrt(max(crowns, 1.0)))  # √N
-        return SPACING_CONSTANT * self.tolerance ** (2.0 / 3.0) * radius * averaged ** (2 / 3)
+        return constant * self.tolerance ** (2.0 / 3.0) * radius * averaged ** (2 / 3)
 
     def oversampling_for(self, bin_height, pulse_sigma) -> int:
         """Fine layers per digitiser bin of ``bin_height`` (m) for a pulse of σz =

@@ -8,8 +8,11 @@ at the layer edges. Sums over the tiles are footprint means, since a column's we
 its share of the footprint. Memory is bounded by a tile's columns times the crowns that
 reach it, whatever the number or size of the crowns.
 
-:mod:`forward.column_kernel_numba` computes the same sums column by column in compiled
-code, under the same name; both give the same numbers to rounding.
+:func:`ground_gap` gives the footprint-mean gap at the ground alone, on columns of its
+own: each crown adds its optical depth to the columns under it.
+
+:mod:`forward.column_kernel_numba` computes the same sums in compiled code, under the
+same names; both give the same numbers to rounding.
 """
 
 from dataclasses import dataclass
@@ -153,3 +156,60 @@ def _deposit(target, position, value):
     frac = position - node
     np.add.at(target, node, value * (1.0 - frac))
     np.add.at(target, np.minimum(node + 1, target.size - 1), value * frac)
+
+
+def ground_gap(grid: ColumnGrid, crowns: CrownSet, slope=(0.0, 0.0), ground_nodes=None, h=1.0):
+    """Footprint-mean gap at the ground, P̄(0) = Σ ω·exp(−τ), over the columns of ``grid``.
+
+    Only the whole optical depth τ of each column is needed, τ = Σ k·G·Ω·u·(path length
+    of each crown over it), so the ground can have columns of its own, closer than those
+    of the profiles (:meth:`forward.accuracy.AccuracySettings.ground_spacing_for`). Each
+    crown adds its depth to the columns of its bounding square.
+
+    Parameters
+    ----------
+    grid : ColumnGrid
+    crowns : CrownSet
+    slope : (float, float)
+        Ground gradient (gx, gy), as for :func:`footprint_profiles`.
+    ground_nodes : (int, int) or None
+        Sloped ground: first ground node and number of nodes, at multiples of ``h``.
+    h : float (m)
+        Spacing of the ground nodes.
+
+    Returns
+    -------
+    gap : float
+        P̄ at the ground.
+    ground_mass : array or None
+        Sloped ground: Σ ω·P(ground) of the columns whose ground lies at each node
+        (linear deposit between nodes); None on flat ground.
+    """
+    nodes = grid.nodes
+    first, last = crown_node_ranges(grid, crowns)
+    depth = np.zeros((nodes.size, nodes.size))
+    for c in range(crowns.size):
+        (i0, j0), (i1, j1) = first[c], last[c] + 1
+        if i1 <= i0 or j1 <= j0:
+            continue
+        px, py = np.meshgrid(nodes[i0:i1], nodes[j0:j1], indexing="ij")
+        rho = np.hypot(px - crowns.x[c], py - crowns.y[c]) / crowns.radius[c]
+        inside = rho < 1.0
+        shape = np.full(rho.shape, crowns.shape[c])
+        z_low, z_high = crown_interval(
+            shape, np.minimum(rho, 1.0), crowns.base[c], crowns.length[c]
+        )
+        if ground_nodes is not None:  # foliage below the local ground surface does not exist
+            z_ground = slope[0] * px + slope[1] * py
+            z_low, z_high = np.maximum(z_low, z_ground), np.maximum(z_high, z_ground)
+        path = np.where(inside, np.maximum(z_high - z_low, 0.0), 0.0)
+        depth[i0:i1, j0:j1] += crowns.extinction[c] * path
+    px, py = np.meshgrid(nodes, nodes, indexing="ij")
+    inside = px * px + py * py <= grid.radius * grid.radius
+    gap = np.outer(grid.weights, grid.weights)[inside] * np.exp(-depth[inside])
+    if ground_nodes is None:
+        return float(gap.sum()), None
+    mass = np.zeros(ground_nodes[1])
+    z_ground = slope[0] * px[inside] + slope[1] * py[inside]
+    _deposit(mass, z_ground / h - ground_nodes[0], gap)
+    return float(gap.sum()), mass

@@ -12,8 +12,9 @@ the two nearest layer edges, so that a running sum of them from the top gives ea
 layer's optical depth Δτ exactly (:mod:`forward.gap`). Walking down the column, the gap
 P falls by the factor exp(−Δτ) in each layer and the layer returns ω·P·(1 − exp(−Δτ)),
 with 1 − exp(−Δτ) taken to full relative precision for thin layers; one exponential is
-taken per run of layers at one Δτ, not per layer. :data:`AVAILABLE` is False when numba
-cannot be imported.
+taken per run of layers at one Δτ, not per layer. :func:`ground_gap` adds each crown's
+optical depth to the columns of its disc, row by row (one compiled loop per crown
+shape), then sums ω·exp(−τ). :data:`AVAILABLE` is False when numba cannot be imported.
 """
 
 import importlib.util
@@ -28,7 +29,7 @@ from .gap import LayerGrid, layer_integral
 #: Whether numba is installed (it is imported, and the kernel compiled, on first use).
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
-__all__ = ["AVAILABLE", "footprint_profiles"]
+__all__ = ["AVAILABLE", "footprint_profiles", "ground_gap"]
 
 #: Shape codes, in the order of :data:`forward.crowns.SHAPE_NAMES`.
 _CONE, _ELLIPSOID, _HEMI_ELLIPSOID, _CYLINDER = (
@@ -238,6 +239,90 @@ def _footprint_sums(
     return returns[:n_layers], volume, foliage, ground[:n_ground]
 
 
+#: Ground height (m) that cuts no crown: finite, since the ground pass is compiled with
+#: fast math (which assumes no infinities).
+_FAR_BELOW = -1e300
+
+
+def _chord(nodes, lo, hi, centre, half, start, stop):
+    """Range [start, stop) of the nodes among ``nodes[lo:hi]`` (ascending) that lie
+    within ``half`` of ``centre``, stepped from the range ``start, stop`` of the row
+    before (a crown's chords change little from row to row)."""
+    while start > lo and nodes[start - 1] >= centre - half:
+        start -= 1
+    while start < hi and nodes[start] < centre - half:
+        start += 1
+    stop = max(stop, start)
+    while stop < hi and nodes[stop] <= centre + half:
+        stop += 1
+    while stop > start and nodes[stop - 1] > centre + half:
+        stop -= 1
+    return start, stop
+
+
+def _crown_depth_row(row, nodes, start, stop, dy0, dx2, inv_r, r2, depth_per_m, extent, z):
+    """Add one crown's optical depth to ``row[start:stop]``, columns ``nodes - dy0``
+    across from its stem (``dx2`` the squared distance along the other axis); ``z`` =
+    (base, length, ground gradient along the row, ground height at node 0 of the row)
+    cuts the crown at the local ground (:data:`_FAR_BELOW` on flat ground)."""
+    base, length, slope, ground0 = z
+    for j in range(start, stop):
+        dy = nodes[j] - dy0
+        d2 = dx2 + dy * dy
+        s_low, s_high = extent(min(np.sqrt(d2) * inv_r, 1.0))
+        z_ground = ground0 + slope * nodes[j]  # foliage below the ground does not exist
+        path = max(base + s_high * length, z_ground) - max(base + s_low * length, z_ground)
+        row[j] += depth_per_m * path * (d2 < r2)
+
+
+def _ground_gap(
+    nodes, weights, r2, first, last, x, y, radius, code, base, length, ext,
+    gx, gy, sloped, ground_first, n_ground, inv_h,
+):  # fmt: skip
+    """Compiled :func:`forward.column_kernel.ground_gap`: each crown adds its optical
+    depth to the columns of its disc, row by row, then Σ ω·exp(−τ) (and the ground
+    masses on sloped ground)."""
+    n = nodes.size
+    depth = np.zeros((n, n))
+    for c in range(x.size):
+        r_c2, inv_r = radius[c] * radius[c], 1.0 / radius[c]
+        start = stop = (first[c, 1] + last[c, 1] + 1) // 2
+        for i in range(first[c, 0], last[c, 0] + 1):
+            dx2 = (nodes[i] - x[c]) ** 2
+            half = np.sqrt(max(r_c2 - dx2, 0.0)) * (1.0 + 1e-9)  # the chord, padded
+            start, stop = _chord(nodes, first[c, 1], last[c, 1] + 1, y[c], half, start, stop)
+            z = (base[c], length[c], gy, gx * nodes[i] if sloped else _FAR_BELOW)
+            row, k, a = depth[i], code[c], ext[c]
+            if k == _CONE:  # one loop per shape, so that each compiles to straight code
+                _crown_depth_row(row, nodes, start, stop, y[c], dx2, inv_r, r_c2, a, _cone, z)
+            elif k == _ELLIPSOID:
+                _crown_depth_row(row, nodes, start, stop, y[c], dx2, inv_r, r_c2, a, _ellipsoid, z)
+            elif k == _HEMI_ELLIPSOID:
+                _crown_depth_row(
+                    row, nodes, start, stop, y[c], dx2, inv_r, r_c2, a, _hemi_ellipsoid, z
+                )
+            else:
+                _crown_depth_row(row, nodes, start, stop, y[c], dx2, inv_r, r_c2, a, _cylinder, z)
+    total = 0.0
+    ground = np.zeros(n_ground + 1)
+    start = stop = n // 2
+    for i in range(n):
+        half = np.sqrt(max(r2 - nodes[i] * nodes[i], 0.0))
+        start, stop = _chord(nodes, 0, n, 0.0, half, start, stop)
+        row = 0.0
+        for j in range(max(start - 1, 0), min(stop + 1, n)):  # the disc's test decides
+            if nodes[i] * nodes[i] + nodes[j] * nodes[j] > r2:
+                continue
+            tau = depth[i, j]
+            gap = weights[j] * np.exp(-tau) if tau > 0.0 else weights[j]
+            row += gap
+            if sloped:
+                z_ground = gx * nodes[i] + gy * nodes[j]
+                _add_kink(ground, z_ground * inv_h - ground_first, weights[i] * gap)
+        total += weights[i] * row
+    return total, ground[:n_ground]
+
+
 _COMPILED = {}
 
 
@@ -248,6 +333,7 @@ def _kernel():
 
         global _cone, _ellipsoid, _hemi_ellipsoid, _cylinder
         global _extent, _transmission, _bin_lists, _add_kink, _sort_marks, _run, _walk
+        global _chord, _crown_depth_row
         inline = njit(cache=True, inline="always")
         _cone = inline(crown_shapes._cone_extent)
         _ellipsoid = inline(crown_shapes._ellipsoid_extent)
@@ -259,8 +345,11 @@ def _kernel():
         _sort_marks = inline(_sort_marks)
         _run = inline(_run)
         _walk = inline(_walk)
+        _chord = inline(_chord)
+        _crown_depth_row = inline(_crown_depth_row)
         _bin_lists = njit(cache=True)(_bin_lists)
         _COMPILED["sums"] = njit(cache=True)(_footprint_sums)
+        _COMPILED["ground"] = njit(cache=True, fastmath=True)(_ground_gap)
     return _COMPILED["sums"]
 
 
@@ -291,3 +380,21 @@ def footprint_profiles(
     h, n_edges = layers.thickness, layers.n_layers + 1
     volume, foliage = (layer_integral(k[:n_edges, None], h)[::-1, 0] for k in (volume, foliage))
     return FootprintSums(returns[::-1].copy(), volume, foliage, ground if sloped else None)
+
+
+def ground_gap(grid: ColumnGrid, crowns: CrownSet, slope=(0.0, 0.0), ground_nodes=None, h=1.0):
+    """Compiled :func:`forward.column_kernel.ground_gap` (same arguments, same results to
+    rounding)."""
+    _kernel()
+    first, last = crown_node_ranges(grid, crowns)
+    sloped = ground_nodes is not None
+    ground_first, n_ground = ground_nodes if sloped else (0, 0)
+    f64 = np.ascontiguousarray
+    gap, ground = _COMPILED["ground"](
+        f64(grid.nodes, float), f64(grid.weights, float), float(grid.radius) ** 2, first, last,
+        *(f64(a, float) for a in (crowns.x, crowns.y, crowns.radius)),
+        f64(crowns.shape, np.int64),
+        *(f64(a, float) for a in (crowns.base, crowns.length, crowns.extinction)),
+        float(slope[0]), float(slope[1]), sloped, int(ground_first), int(n_ground), 1.0 / h,
+    )  # fmt: skip
+    return float(gap), (ground if sloped else None)

@@ -9,6 +9,9 @@ its columns, exact at the fine-layer edges (:mod:`forward.column_kernel`, compil
 
 The columns lie on a grid over the truncated footprint (:mod:`forward.column_grid`) whose
 spacing follows from the accuracy settings' tolerance (:mod:`forward.accuracy`). The
+ground gap P̄(0) has closer columns of its own, which need only each column's whole
+optical depth (:func:`forward.column_kernel.ground_gap`); the canopy returns are scaled
+to 1 − P̄(0), so that canopy and ground energy still add up. The
 per-crown disc quadrature of earlier versions (:mod:`forward.footprint`) is kept as the
 scheme ``"crowns"``.
 """
@@ -105,8 +108,9 @@ class WaveformSimulator:
         self.instrument = instrument
         self.accuracy = accuracy
         self.scheme = accuracy.scheme
-        self.footprint_radius = truncation_radius(
-            instrument.footprint_sigma_m, accuracy.footprint_tolerance
+        self.footprint_radius = truncation_radius(  # the reach of the furthest columns
+            instrument.footprint_sigma_m,
+            min(accuracy.footprint_tolerance, accuracy.ground_tolerance),
         )
         dz = instrument.bin_height
         low, high = instrument.pulse.support(0.1587)  # ±1σ of a Gaussian pulse
@@ -118,7 +122,7 @@ class WaveformSimulator:
         self.pulse_support = instrument.pulse.support(accuracy.pulse_tolerance)
         self.quadrature = DiscQuadrature(*accuracy.crown_nodes) if self.scheme == "crowns" else None
         self.backend = _backend(accuracy.backend)
-        self._grids: dict[float, ColumnGrid] = {}
+        self._grids: dict[tuple[float, float], ColumnGrid] = {}
 
     # public API ----------------------------------------------------------------------
     def prepare(self, stand: Stand) -> PreparedStand:
@@ -133,19 +137,24 @@ class WaveformSimulator:
         last = np.ceil((max(top, 0.0) + high) / dz) + 1
         return np.arange(first, last + 1) * dz
 
-    def column_grid(self, crown_radius, crowns=np.inf) -> ColumnGrid:
+    def column_grid(self, crown_radius, crowns=np.inf, shapes=(), ground=False) -> ColumnGrid:
         """The footprint's columns under about ``crowns`` crowns of typical radius
-        ``crown_radius`` (m) (:meth:`AccuracySettings.column_spacing_for`)."""
+        ``crown_radius`` (m) and shape codes ``shapes``
+        (:meth:`AccuracySettings.column_spacing_for`); with ``ground``, the columns of
+        the ground gap (:meth:`AccuracySettings.ground_spacing_for`)."""
         sigma = self.instrument.footprint_sigma_m
-        spacing = self.accuracy.column_spacing_for(sigma, crown_radius, crowns)
+        if ground:
+            spacing = self.accuracy.ground_spacing_for(sigma, crown_radius, crowns)
+        else:
+            spacing = self.accuracy.column_spacing_for(sigma, crown_radius, crowns, shapes)
         if self.accuracy.column_spacing is None:  # round to a ladder, so grids are shared
             steps = SPACING_STEPS_PER_OCTAVE
             spacing = 2.0 ** (np.floor(steps * np.log2(spacing)) / steps)
-        if spacing not in self._grids:
-            self._grids[spacing] = ColumnGrid.build(
-                sigma, spacing, self.accuracy.footprint_tolerance
-            )
-        return self._grids[spacing]
+        accuracy = self.accuracy
+        tolerance = accuracy.ground_tolerance if ground else accuracy.footprint_tolerance
+        if (spacing, tolerance) not in self._grids:
+            self._grids[spacing, tolerance] = ColumnGrid.build(sigma, spacing, tolerance)
+        return self._grids[spacing, tolerance]
 
     def simulate(
         self,
@@ -268,7 +277,9 @@ class ColumnFootprint:
         sim, crowns, ground, understory = self.sim, self.crowns, self.ground, self.understory
         h = sim.layer_height
         typical = float(np.median(crowns.radius)) if crowns.size else sim.footprint_radius
-        grid = sim.column_grid(typical, crowns.effective_count(sim.instrument.footprint_sigma_m))
+        count = crowns.effective_count(sim.instrument.footprint_sigma_m)
+        grid = sim.column_grid(typical, count, np.unique(crowns.shape))
+        ground_grid = sim.column_grid(typical, count, ground=True)
         span_low = min(crowns.base.min(initial=np.inf), 0.0 if understory else np.inf)
         span_high = max(
             crowns.top.max(initial=-np.inf), understory.height if understory else -np.inf
@@ -278,15 +289,21 @@ class ColumnFootprint:
         layers, first = sim.layer_grid(heights, span_low, span_high)
         ground_nodes = None
         if not ground.is_flat:
-            reach = grid.radius * np.tan(np.radians(ground.slope_deg))
+            reach = max(grid.radius, ground_grid.radius) * np.tan(np.radians(ground.slope_deg))
             k0 = int(np.floor(-reach / h)) - 1
             ground_nodes = (k0, int(np.ceil(reach / h)) - k0 + 2)
         sums = sim.backend.footprint_profiles(
             grid, crowns, layers, ground.gradient, ground_nodes, bin_columns(grid, typical)
         )
+        layer_return, ground_mass = sums.layer_return, sums.ground_mass
+        separate = ground_grid.spacing < grid.spacing or ground_grid.radius > grid.radius
+        if separate and crowns.size:
+            layer_return, ground_mass = _with_ground_columns(
+                sim.backend, ground_grid, crowns, sums, ground.gradient, ground_nodes, h
+            )
         profiles = ColumnProfiles(
-            gap_edges=gap_from_returns(sums.layer_return),
-            layer_return=sums.layer_return,
+            gap_edges=gap_from_returns(layer_return),
+            layer_return=layer_return,
             crown_volume=sums.crown_volume,
             foliage_area=sums.foliage_area,
             column_depth=None,
@@ -297,7 +314,7 @@ class ColumnFootprint:
         if ground_nodes is None:
             nodes, weights = np.zeros(1), np.array([at_ground])
         else:
-            mass = sums.ground_mass
+            mass = ground_mass
             nodes = (ground_nodes[0] + np.arange(mass.size)) * h
             weights = mass * (at_ground / mass.sum()) if mass.sum() > 0 else mass
         settings = {
@@ -305,6 +322,22 @@ class ColumnFootprint:
             "tolerance": sim.accuracy.tolerance,
             "column_spacing_m": grid.spacing,
             "columns": grid.n_columns,
+            "ground_column_spacing_m": ground_grid.spacing if separate else grid.spacing,
+            "ground_truncation_tolerance": sim.accuracy.ground_tolerance,
             "backend": "numba" if sim.backend is column_kernel_numba else "numpy",
         }
         return profiles, (layers, first), nodes, weights, settings
+
+
+def _with_ground_columns(backend, grid, crowns, sums, slope, ground_nodes, h):
+    """The layer returns scaled so that they add up to 1 − P̄(0), with P̄(0) from the
+    ground's own columns ``grid``, and the ground masses from those columns.
+
+    Energy is conserved column by column, so the returns of the profiles' columns add
+    up to 1 minus their own P̄(0): the scaling corrects the canopy energy by what the
+    closer ground columns correct in the ground's, and leaves the profile's shape."""
+    intercepted = float(sums.layer_return.sum())
+    if intercepted <= 0.0:  # no crown over the profiles' columns: nothing to scale
+        return sums.layer_return, sums.ground_mass
+    gap, mass = backend.ground_gap(grid, crowns, slope, ground_nodes, h)
+    return sums.layer_return * ((1.0 - gap) / intercepted), mass

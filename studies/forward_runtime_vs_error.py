@@ -196,6 +196,7 @@ def study_kind(kind, n_footprints, repeats, quick):
                 "wall_ms_per_footprint": 1e3 * float(np.min(wall[label])),
                 "columns": waveforms[0].settings.get("columns"),
                 "column_spacing_m": waveforms[0].settings.get("column_spacing_m"),
+                "ground_column_spacing_m": waveforms[0].settings.get("ground_column_spacing_m"),
             }
         )
     rows.append(brute_force(stand, instrument, centers[0], refs[0], quick))
@@ -245,6 +246,7 @@ def brute_force(stand, instrument, center, ref, quick):
         "wall_ms_per_footprint": 1e3 * wall,
         "columns": None,
         "column_spacing_m": spacing,
+        "ground_column_spacing_m": spacing,
     }
 
 
