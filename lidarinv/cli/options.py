@@ -52,8 +52,8 @@ def add_inversion_options(parser) -> None:
     parser.add_argument(
         "--cohorts",
         choices=("1", "2", "auto"),
-        help="height cohorts of the stand: 1 (default), 2 (a lower storey), or auto: 1, and "
-        "2 where 1 leaves a misfit, the lower DIC kept",
+        help="height cohorts of the stand: 1 (default), 2 (a lower storey), or auto: the "
+        "one with the lower BIC at its MAP",
     )
     parser.add_argument(
         "--overwrite", action="store_true", help="replace results the output already holds"

@@ -3,8 +3,8 @@
 :func:`invert_shot` builds the problem (:func:`.problem.build_problem`), simulates its
 discrepancy covariance where the settings ask (:func:`.realisations.realisation_covariance`),
 samples the posterior (:func:`.sampling.run_sampler`) and collects the result
-(:func:`.collect.collect_result`). With ``cohorts="auto"``, where one height cohort leaves
-a misfit, it does so again with two and keeps the stand model the DIC prefers.
+(:func:`.collect.collect_result`). With ``cohorts="auto"`` it first chooses the stand model,
+one height cohort or two, by the BIC of their MAPs (:func:`choose_cohorts`).
 """
 
 from dataclasses import replace
@@ -15,18 +15,19 @@ from threadpoolctl import threadpool_limits
 
 from lidarinv.observe.observation import Observation
 
-from .collect import MISFIT_P_VALUE, collect_result
+from .collect import collect_result
 from .likelihood.covariance import covariance_obstacle
 from .likelihood.discrepancy import SIMULATED
 from .problem import InversionProblem, build_problem
 from .realisations import realisation_covariance
 from .result import InversionResult
 from .sampling.sampler import run_sampler
+from .sampling.start import find_map
 from .settings import AUTO, InversionSettings
 
-#: DIC difference below which the two stand models are reported as undecided (a
-#: difference of a few units is within the DIC's own sampling noise).
-DIC_UNDECIDED = 5.0
+#: BIC difference below which the two stand models are reported as undecided: a Bayes
+#: factor under about e (Kass & Raftery 1995: "not worth more than a bare mention").
+BIC_UNDECIDED = 2.0
 
 
 def invert_shot(
@@ -88,18 +89,29 @@ def prepare_problem(
     start : array (ndim,) or None
         The sampler's start (unbounded): the pilot MAP, or None for the MAP search.
     report : dict
-        ``seconds`` and ``map_converged`` of the simulation, if run, and ``notes`` (flags
-        for the result).
+        ``seconds`` and ``map_converged`` of the simulation, if run, ``notes`` (flags
+        for the result), and with ``cohorts="auto"`` the stand model's choice
+        (:func:`choose_cohorts`).
     """
-    problem = build_problem(observation, settings)
+    settings = InversionSettings() if settings is None else settings
     start, report = None, {"notes": []}
+    if settings.cohorts == AUTO:
+        problem, estimate, report["cohorts"] = choose_cohorts(observation, settings, rng)
+        if report["cohorts"]["undecided"]:
+            bic = report["cohorts"]["bic"]
+            report["notes"].append(
+                f"stand model undecided: BIC {bic[1]:.1f} with one cohort, {bic[2]:.1f} with "
+                "two at their MAPs; the data leave both explanations"
+            )
+    else:
+        problem, estimate = build_problem(observation, settings), None
     settings = problem.settings
     if settings.discrepancy_model == SIMULATED:
         obstacle = covariance_obstacle(problem.window, settings.shot_factor)
         if obstacle is None:
             covariance, start, simulated = realisation_covariance(
                 problem.log_posterior, problem.instrument, rng, settings.realisations,
-                settings.sampler,
+                settings.sampler, estimate,
             )  # fmt: skip
             problem = problem.with_fixed_discrepancy(covariance)
             report.update(simulated)
@@ -110,19 +122,57 @@ def prepare_problem(
     return problem, start, report
 
 
+def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object, dict]:
+    """The stand model, one height cohort or two, the shot's own evidence prefers.
+
+    Each model's MAP is searched under the per-bin ``observed`` discrepancy, which the
+    observation fixes and both models share, and the one with the lower Bayesian
+    information criterion BIC = −2 ln L̂ + k ln n (k sampled parameters, n window bins;
+    Schwarz 1978, an approximation to −2 ln of the evidence) is kept.
+
+    Parameters
+    ----------
+    observation : Observation
+    settings : InversionSettings
+        With ``cohorts="auto"``.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    problem : InversionProblem
+        The chosen model's problem (before any simulated discrepancy).
+    estimate : MapEstimate
+        Its MAP search, for the discrepancy's simulation.
+    choice : dict
+        ``chosen`` (1 or 2), ``map_log_likelihood`` and ``bic`` per model, and
+        ``undecided``: the BICs differ by less than :data:`BIC_UNDECIDED`.
+    """
+    candidates = {}
+    for cohorts in (1, 2):
+        problem = build_problem(observation, replace(settings, cohorts=cohorts))
+        post, space = problem.log_posterior, problem.space
+        estimate = find_map(lambda u, post=post: post(u)[:, 0], space, rng, settings.sampler)
+        x, _ = space.from_unbounded(estimate.u[None, :])
+        log_likelihood = float(post.evaluate(x).log_likelihood[0])
+        bic = -2.0 * log_likelihood + space.ndim * np.log(problem.window.samples.size)
+        candidates[cohorts] = (problem, estimate, log_likelihood, bic)
+    chosen = min(candidates, key=lambda k: candidates[k][3])
+    bic = {k: c[3] for k, c in candidates.items()}
+    choice = {
+        "chosen": chosen,
+        "map_log_likelihood": {k: c[2] for k, c in candidates.items()},
+        "bic": bic,
+        "undecided": bool(abs(bic[2] - bic[1]) < BIC_UNDECIDED),
+    }
+    return candidates[chosen][0], candidates[chosen][1], choice
+
+
 def _invert(observation, settings, rng, progress, backend_path) -> InversionResult:
-    settings = InversionSettings() if settings is None else settings
-    if settings.cohorts == AUTO:
-        return _select_cohorts(observation, settings, rng, progress, backend_path)
     problem, start, report = prepare_problem(observation, settings, rng)
-    return _sample(problem, start, report, rng, progress, backend_path, observation.shot_id)
-
-
-def _sample(problem, start, report, rng, progress, backend_path, group) -> InversionResult:
-    """Run the sampler on a prepared problem and collect its result."""
     backend = None
     if backend_path is not None:
-        backend = emcee.backends.HDFBackend(str(backend_path), name=f"shot_{group}")
+        name = f"shot_{observation.shot_id}"
+        backend = emcee.backends.HDFBackend(str(backend_path), name=name)
     run = run_sampler(
         problem.log_posterior,
         problem.space,
@@ -136,42 +186,7 @@ def _sample(problem, start, report, rng, progress, backend_path, group) -> Inver
     run.flags.extend(report["notes"])
     if "seconds" in report:
         run.seconds["discrepancy"] = report["seconds"]
-    return collect_result(problem, run, rng)
-
-
-def _select_cohorts(observation, settings, rng, progress, backend_path) -> InversionResult:
-    """One height cohort, and two where one leaves a misfit: the lower DIC is kept.
-
-    The one-cohort run comes first. Where its posterior-predictive check finds a misfit
-    (p below :data:`.collect.MISFIT_P_VALUE`) the shot is inverted again with a lower
-    storey under the same likelihood (the one-cohort run's discrepancy, simulated once:
-    DICs under two simulated covariances would compare the covariances too), and the
-    stand model with the lower DIC is kept. The result records the DICs and the choice,
-    and a flag where they differ by less than :data:`DIC_UNDECIDED` (the data leave both
-    explanations).
-    """
-    group = observation.shot_id
-    one, start, report = prepare_problem(observation, replace(settings, cohorts=1), rng)
-    results = {1: _sample(one, start, report, rng, progress, backend_path, group)}
-    p_value = results[1].diagnostics["predictive_p_value"]
-    if p_value >= MISFIT_P_VALUE:
-        result = results[1]
-        result.diagnostics["cohorts"] = {"chosen": 1, "dic": {1: result.diagnostics["dic"]}}
-        return result
-    two = build_problem(observation, replace(settings, cohorts=2))
-    shared = one.log_posterior.likelihood.fixed_discrepancy
-    if shared is not None:
-        two = two.with_fixed_discrepancy(shared)
-    group = f"{observation.shot_id}_cohorts2"
-    results[2] = _sample(two, None, {"notes": list(report["notes"])}, rng, progress,
-                         backend_path, group)  # fmt: skip
-    dic = {k: r.diagnostics["dic"] for k, r in results.items()}
-    chosen = 2 if dic[2] < dic[1] else 1
-    result = results[chosen]
-    result.diagnostics["cohorts"] = {"chosen": chosen, "dic": dic}
-    if abs(dic[2] - dic[1]) < DIC_UNDECIDED:
-        result.flags.append(
-            f"stand model undecided: DIC {dic[1]:.1f} with one cohort, {dic[2]:.1f} with two; "
-            f"the other ({3 - chosen} cohort{'s' if chosen == 1 else ''}) fits nearly as well"
-        )
+    result = collect_result(problem, run, rng)
+    if "cohorts" in report:
+        result.diagnostics["cohorts"] = report["cohorts"]
     return result

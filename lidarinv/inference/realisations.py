@@ -149,7 +149,7 @@ def discrepancy_covariance(residuals, shrinkage) -> np.ndarray:
 
 def realisation_covariance(
     pilot: LogPosterior, instrument, rng, settings: RealisationSettings | None = None,
-    sampler=None,
+    sampler=None, estimate=None,
 ):  # fmt: skip
     """The discrepancy covariance of a shot, simulated around its pilot MAP.
 
@@ -163,6 +163,8 @@ def realisation_covariance(
     settings : RealisationSettings, optional
     sampler : SamplerSettings, optional
         The MAP search's settings (:func:`.sampling.start.find_map`).
+    estimate : MapEstimate, optional
+        The pilot's MAP search, if already run.
 
     Returns
     -------
@@ -179,7 +181,8 @@ def realisation_covariance(
     clock = time.perf_counter()
     space = pilot.space
     log_prob = lambda u: pilot(u)[:, 0]  # noqa: E731
-    estimate = find_map(log_prob, space, rng, sampler)
+    if estimate is None:
+        estimate = find_map(log_prob, space, rng, sampler)
     mode = Mode(estimate.u, estimate.log_prob, estimate.covariance)
     draws = initial_ball(log_prob, [mode], settings.ball, settings.count, rng)
     x, _ = space.from_unbounded(draws)

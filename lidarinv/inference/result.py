@@ -172,8 +172,8 @@ class InversionResult:
                 f"parameters), posterior-predictive p {d['predictive_p_value']:.3f}"
             )
         if "cohorts" in d:
-            dic = ", ".join(f"{k} cohort(s) {v:.1f}" for k, v in d["cohorts"]["dic"].items())
-            lines.append(f"stand model: {d['cohorts']['chosen']} cohort(s) chosen by DIC ({dic})")
+            bic = ", ".join(f"{k} cohort(s) {v:.1f}" for k, v in d["cohorts"]["bic"].items())
+            lines.append(f"stand model: {d['cohorts']['chosen']} cohort(s), by BIC ({bic})")
         lines += [f"warning: {flag}" for flag in self.flags]
         return "\n".join(lines)
 

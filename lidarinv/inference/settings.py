@@ -135,9 +135,8 @@ class InversionSettings:
     cohorts : int or str
         Height cohorts of the stand: 1, one truncated-normal height family; 2, a lower
         storey beside it (:mod:`.model.two_cohort`), for multi-layer canopies and
-        emergents; ``"auto"``, one, and two where one leaves a misfit (its
-        posterior-predictive p < 0.01), the one with the lower DIC kept
-        (:func:`.invert.invert_shot`; twice the time on those shots). A priors file
+        emergents; ``"auto"``, the one with the lower BIC at its MAP
+        (:func:`.invert.choose_cohorts`; one MAP search more). A priors file
         turns 2 on with a table for a parameter of :data:`.model.two_cohort.COHORT2`.
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
