@@ -255,20 +255,7 @@ class StandMapping:
             self.truncation, self._volume, self._leaf, DOMINANT_PER_HA, backend=self.backend,
         )  # fmt: skip
         lam, mean, favd, area, m1, volume, dominant = columns.T
-        cone = v["cone_fraction"]
-        fields = {name: v[name] for name in self.model_free if name in v}
-        fields.update(
-            {
-                "density": lam * 1e4,
-                "height_mean": mean,
-                "crown_radius_intercept": self._value(v, "crown_radius_intercept"),
-                "favd": favd,
-                "canopy_reflectance": v["rho_ratio"],
-                "ground_reflectance": 1.0,
-                f"mix_{self.shape_pair[0]}": cone,
-                f"mix_{self.shape_pair[1]}": 1.0 - cone,
-            }
-        )
+        fields = self.stand_fields(v, lam, mean, favd)
         if self.conditioned:
             args, lowest = tallest_stem.arguments_and_lowest(
                 self.family, mean, v["height_sd"], self.truncation
@@ -297,6 +284,26 @@ class StandMapping:
                 self.family, args, lowest, lam * self.tallest_stem_area, tallest
             )
         return vectors, derived
+
+    def stand_fields(self, v, density_m2, height_mean, favd) -> dict:
+        """The model-vector fields of rows: the parameters named as fields, and the
+        stand's density (stems/ha), cohort 1's height mean (m), FAVD (m²/m³), crown-radius
+        intercept, reflectances (ρg = 1) and shape mix."""
+        cone = v["cone_fraction"]
+        fields = {name: v[name] for name in self.model_free if name in v}
+        fields.update(
+            {
+                "density": density_m2 * 1e4,
+                "height_mean": height_mean,
+                "crown_radius_intercept": self._value(v, "crown_radius_intercept"),
+                "favd": favd,
+                "canopy_reflectance": v["rho_ratio"],
+                "ground_reflectance": 1.0,
+                f"mix_{self.shape_pair[0]}": cone,
+                f"mix_{self.shape_pair[1]}": 1.0 - cone,
+            }
+        )
+        return fields
 
     def crowns_spanning(self, v, z) -> np.ndarray:
         """Stems per m² whose crowns span heights above the ground.

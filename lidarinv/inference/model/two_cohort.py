@@ -184,22 +184,9 @@ class TwoCohortMapping(StandMapping):
         :meth:`.stand.StandMapping.model_vectors`), with cohort 2's share, mean and sd."""
         cohorts, lam, area, mean_height, favd, volume = self._columns(v)
         (_, mean1, _, *_), (f2, mean2, sd2, *_) = cohorts
-        cone = v["cone_fraction"]
-        fields = {name: v[name] for name in self.model_free if name in v}
+        fields = self.stand_fields(v, lam, mean1, favd)
         fields.update(
-            {
-                "density": lam * 1e4,
-                "height_mean": mean1,
-                "crown_radius_intercept": self._value(v, "crown_radius_intercept"),
-                "favd": favd,
-                "canopy_reflectance": v["rho_ratio"],
-                "ground_reflectance": 1.0,
-                f"mix_{self.shape_pair[0]}": cone,
-                f"mix_{self.shape_pair[1]}": 1.0 - cone,
-                "cohort2_fraction": f2,
-                "cohort2_height_mean": mean2,
-                "cohort2_height_sd": sd2,
-            }
+            {"cohort2_fraction": f2, "cohort2_height_mean": mean2, "cohort2_height_sd": sd2}
         )
         vectors = vectors_by_name(fields, self.model_free)
         derived = {
