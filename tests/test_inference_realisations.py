@@ -162,6 +162,27 @@ def test_shrinkage_moves_the_covariance_between_second_moment_and_its_diagonal(r
         RealisationSettings(shrinkage=1.5)
     with pytest.raises(ValueError, match="at least 2"):
         RealisationSettings(count=1)
+    with pytest.raises(ValueError, match="instrument_floor"):
+        RealisationSettings(instrument_floor=-0.1)
+
+
+def test_the_instrument_floor_adds_the_observed_per_bin_variance_to_the_covariance(shot):
+    """The simulated covariance gains (η₀·ŝ)² on its diagonal, and nothing else."""
+    from lidarinv.inference.invert import prepare_problem
+    from lidarinv.inference.problem import fixed_discrepancy
+
+    covariances = {}
+    for floor in (0.0, 0.1):
+        settings = InversionSettings(
+            realisations=RealisationSettings(count=8, instrument_floor=floor),
+            sampler=SamplerSettings(candidates=64, starts=2),
+        )
+        problem, _, _ = prepare_problem(shot, settings, np.random.default_rng(5))
+        covariances[floor] = problem.log_posterior.likelihood.fixed_discrepancy
+    added = covariances[0.1] - covariances[0.0]
+    expected = fixed_discrepancy(problem.shot, replace(settings, discrepancy=0.1))
+    np.testing.assert_allclose(np.diag(added), expected, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(added - np.diag(np.diag(added)), 0.0, atol=1e-9)
 
 
 def test_realisations_scatter_about_the_expected_waveform(problems, shot, rng):

@@ -18,7 +18,7 @@ from lidarinv.observe.observation import Observation
 from .collect import collect_result
 from .likelihood.covariance import covariance_obstacle
 from .likelihood.discrepancy import SIMULATED
-from .problem import InversionProblem, build_problem
+from .problem import InversionProblem, build_problem, fixed_discrepancy
 from .realisations import realisation_covariance
 from .result import InversionResult
 from .sampling.sampler import run_sampler
@@ -113,6 +113,10 @@ def prepare_problem(
                 problem.log_posterior, problem.instrument, rng, settings.realisations,
                 settings.sampler, estimate,
             )  # fmt: skip
+            floor = settings.realisations.instrument_floor
+            if floor > 0:  # the instrument model's own error, on the diagonal
+                variance = fixed_discrepancy(problem.shot, replace(settings, discrepancy=floor))
+                covariance = covariance + np.diag(variance)
             problem = problem.with_fixed_discrepancy(covariance)
             report.update(simulated)
             if not simulated["map_converged"]:

@@ -52,6 +52,12 @@ class RealisationSettings:
         Quadrature of the explicit engine: 8 columns a crown (2 rings × 4 angles), a
         third of the engine's default cost; the covariance moves less with it than
         between two sets of realisations.
+    instrument_floor : float
+        η₀, the per-bin discrepancy (a fraction of the shot's own signal, as the
+        ``observed`` model) added to the diagonal of the simulated covariance: the error
+        of the instrument model itself (the shape of the measured pulse, what widens a
+        real ground return), which realisations drawn from the same model cannot hold.
+        0 for none.
     """
 
     count: int = 64
@@ -59,8 +65,11 @@ class RealisationSettings:
     ball: float = 1.0
     plot_diameters: float = 3.0
     accuracy: AccuracySettings = DISCREPANCY_QUADRATURE
+    instrument_floor: float = 0.1
 
     def __post_init__(self):
+        if not self.instrument_floor >= 0.0:
+            raise ValueError(f"instrument_floor must be ≥ 0, got {self.instrument_floor}")
         if self.count < 2:
             raise ValueError(f"the discrepancy needs at least 2 realisations, got {self.count}")
         if not 0.0 <= self.shrinkage <= 1.0:
