@@ -47,6 +47,20 @@ def test_replicated_observations_carry_the_likelihoods_variance():
     )
 
 
+def test_replicated_read_noise_is_correlated_as_the_likelihood_takes_it():
+    from lidarinv.inference.likelihood.ar_noise import AutoregressiveNoise
+
+    rng = np.random.default_rng(4)
+    n, bins = 20_000, 12
+    ar = AutoregressiveNoise.matching_integrated_time(0.8 ** np.arange(40))
+    like = SimpleNamespace(**vars(_likelihood(bins, fixed=np.zeros(bins))), whitening=ar)
+    values = {"gain": np.ones(n), "baseline": np.zeros(n), "noise_sigma": np.full(n, 2.0)}
+    draws, _, _ = replicate_observation(like, np.zeros((n, bins)), values, rng)
+    np.testing.assert_allclose(draws.std(axis=0), 2.0, rtol=0.03)
+    lag1 = np.mean(draws[:, 1:] * draws[:, :-1]) / 4.0
+    assert lag1 == pytest.approx(ar.autocorrelation(2)[1], abs=0.02)
+
+
 def test_replicated_observations_stop_at_the_floor_and_the_digitiser_maximum():
     rng = np.random.default_rng(4)
     n, bins = 2000, 4
