@@ -87,7 +87,8 @@ def prepare_problem(
         (:func:`.realisations.realisation_covariance`) where the settings ask for it and
         it can apply.
     start : array (ndim,) or None
-        The sampler's start (unbounded): the pilot MAP, or None for the MAP search.
+        The sampler's start (unbounded): the pilot MAP (with ``cohorts="auto"``, the
+        chosen model's), or None for the MAP search.
     report : dict
         ``seconds`` and ``map_converged`` of the simulation, if run, ``notes`` (flags
         for the result), and with ``cohorts="auto"`` the stand model's choice
@@ -123,6 +124,8 @@ def prepare_problem(
                 report["notes"].append("MAP optimiser did not report convergence")
         else:
             report["notes"].append(f"per-bin discrepancy used instead of realisations: {obstacle}")
+    if start is None and estimate is not None:  # the chosen model's MAP, not searched twice
+        start = estimate.u
     return problem, start, report
 
 
