@@ -8,35 +8,76 @@ from lidarinv.inference.model import coordinates
 from lidarinv.inference.model.parameters import default_space
 from lidarinv.inference.model.priors import LogUniform, Uniform
 
+BOUNDS = (0.1, 1.0)
+
 
 def test_crown_base_coordinate_round_trip_with_exact_jacobian():
     rng = np.random.default_rng(3)
     ratio = rng.uniform(0.1, 0.999, 300)
     mean = rng.uniform(0.5, 40.0, 300)
-    b = coordinates.crown_base_from_ratio(ratio, mean)
-    np.testing.assert_allclose(np.exp(b), (1.0 - ratio) * mean, rtol=1e-12)
-    back, log_jac = coordinates.ratio_from_crown_base(b, mean)
+    b = coordinates.crown_base_from_ratio(ratio, mean, BOUNDS)
+    back, log_jac = coordinates.ratio_from_crown_base(b, mean, BOUNDS)
     np.testing.assert_allclose(back, ratio, rtol=1e-12)
     h = 1e-6
     slope = (
-        coordinates.ratio_from_crown_base(b + h, mean)[0]
-        - coordinates.ratio_from_crown_base(b - h, mean)[0]
+        coordinates.ratio_from_crown_base(b + h, mean, BOUNDS)[0]
+        - coordinates.ratio_from_crown_base(b - h, mean, BOUNDS)[0]
     ) / (2 * h)
     np.testing.assert_allclose(log_jac, np.log(np.abs(slope)), atol=1e-6)
-    # no stand (mean height ≤ 0) or no crown base (ℓ = 1): no coordinate
-    assert np.all(np.isnan(coordinates.crown_base_from_ratio(np.array([0.5, 1.0]), [-1.0, 9.0])))
+    # no stand (mean height ≤ 0) or a ratio outside the prior: no coordinate
+    bad = coordinates.crown_base_from_ratio(np.array([0.5, 1.0, 0.05]), [-1.0, 9.0, 9.0], BOUNDS)
+    assert np.all(np.isnan(bad))
     assert np.all(np.isnan(coordinates.ratio_from_crown_base(np.zeros(2), [0.0, -3.0])[0]))
+
+
+def test_crown_base_coordinate_is_the_log_crown_base_away_from_its_upper_end():
+    """With ℓ₁ = 1 and deep crowns (B ≪ B₁), b is ln B: the ridge B = const is straight."""
+    mean = np.array([5.0, 20.0, 60.0])
+    ratio = np.full(3, 0.99)
+    b = coordinates.crown_base_from_ratio(ratio, mean, BOUNDS)
+    np.testing.assert_allclose(b, np.log((1.0 - ratio) * mean), atol=0.012)
+
+
+def test_crown_base_coordinate_spans_the_prior_without_leaving_it():
+    b = np.linspace(-60.0, 60.0, 2001)
+    ratio, log_jac = coordinates.ratio_from_crown_base(b, 12.0, BOUNDS)
+    assert np.all((ratio >= BOUNDS[0]) & (ratio <= BOUNDS[1]))
+    assert np.all(np.isfinite(log_jac))
+    assert ratio[0] == pytest.approx(BOUNDS[1]) and ratio[-1] == pytest.approx(BOUNDS[0])
 
 
 @pytest.mark.parametrize("mean_height", [1.5, 15.0, 60.0])
 def test_crown_base_coordinate_keeps_the_ratio_prior(mean_height, nuisance_priors):
-    """The ratio's prior carried to b = ln B with the Jacobian integrates to one."""
+    """The ratio's prior carried to the crown-base coordinate with the Jacobian integrates
+    to one."""
     prior = default_space(nuisance_priors).by_name["crown_length_ratio"].prior
-    b = np.linspace(np.log(mean_height) - 40.0, np.log(mean_height) + 1.0, 400_001)
-    ratio, log_jac = coordinates.ratio_from_crown_base(b, mean_height)
+    form = prior.form()
+    b = np.linspace(np.log(mean_height) - 40.0, np.log(mean_height) + 40.0, 400_001)
+    ratio, log_jac = coordinates.ratio_from_crown_base(b, mean_height, (form.lower, form.upper))
     with np.errstate(invalid="ignore"):
         density = np.exp(prior.log_pdf(ratio) + log_jac)
     assert np.trapezoid(density, b) == pytest.approx(1.0, abs=1e-4)
+
+
+@pytest.mark.parametrize("log_scale", [False, True])
+def test_height_sd_cap_keeps_every_mean_height_positive_with_exact_jacobian(log_scale):
+    rng = np.random.default_rng(8)
+    lower, upper = 0.1, 10.0
+    w_lower, w_upper = (np.log(lower), np.log(upper)) if log_scale else (lower, upper)
+    top = rng.uniform(1.0, 40.0, 400)
+    sd = np.exp(rng.uniform(w_lower, w_upper, 400)) if log_scale else rng.uniform(lower, upper, 400)
+    capped, log_jac = coordinates.height_sd_capped(sd, top, w_lower, w_upper, log_scale, 2.0)
+    assert np.all(top - 2.0 * capped > 0) and np.all(capped >= lower)
+    back = coordinates.height_sd_uncapped(capped, top, w_lower, w_upper, log_scale, 2.0)
+    np.testing.assert_allclose(back, sd, rtol=1e-12)
+    h = 1e-7 * sd
+    slope = (
+        coordinates.height_sd_capped(sd + h, top, w_lower, w_upper, log_scale, 2.0)[0]
+        - coordinates.height_sd_capped(sd - h, top, w_lower, w_upper, log_scale, 2.0)[0]
+    ) / (2 * h)
+    np.testing.assert_allclose(log_jac, np.log(slope), atol=1e-6)
+    # a top below twice the prior's smallest sd admits none
+    assert np.isnan(coordinates.height_sd_capped(0.5, 0.15, w_lower, w_upper, log_scale, 2.0)[0])
 
 
 BOTH = ("cover-pai", "crown-base")
@@ -49,15 +90,17 @@ def test_space_samples_the_crown_base_of_the_mean_tree(nuisance_priors):
     x = space.sample_prior(np.random.default_rng(5), 400)
     x = x[x[:, top] > 2.0 * x[:, sd]][:50]
     u = space.to_unbounded(x)
-    base = (1.0 - x[:, r]) * (x[:, top] - 2.0 * x[:, sd])
-    np.testing.assert_allclose(u[:, r], np.log(base), rtol=1e-12)
+    mean = x[:, top] - 2.0 * x[:, sd]
+    expected = coordinates.crown_base_from_ratio(x[:, r], mean, (0.1, 1.0))
+    np.testing.assert_allclose(u[:, r], expected, rtol=1e-12)
     back, _ = space.from_unbounded(u)
     np.testing.assert_allclose(back, x, rtol=1e-10)
-    # a move to a height distribution with no mean height is outside the prior
-    u_bad = u[:1].copy()
-    u_bad[0, sd], u_bad[0, top] = 30.0, -30.0  # sd 10 m, top 1 m: mean height < 0
-    x_bad, _ = space.from_unbounded(u_bad)
-    assert space.log_prior(x_bad)[0] == -np.inf
+    # no move leaves the prior: the largest sd at the smallest top keeps a mean height
+    u_edge = u[:1].copy()
+    u_edge[0, sd], u_edge[0, top], u_edge[0, r] = 30.0, -30.0, 30.0
+    x_edge, log_jac = space.from_unbounded(u_edge)
+    assert np.isfinite(space.log_prior(x_edge)[0]) and np.isfinite(log_jac[0])
+    assert x_edge[0, top] - 2.0 * x_edge[0, sd] > 0
 
 
 def test_crown_base_uses_a_fixed_height_and_can_be_turned_off(nuisance_priors):
@@ -67,7 +110,8 @@ def test_crown_base_uses_a_fixed_height_and_can_be_turned_off(nuisance_priors):
     x = fixed_top.sample_prior(np.random.default_rng(6), 20)
     x[:, sd] = np.minimum(x[:, sd], 10.0)
     u = fixed_top.to_unbounded(x)
-    np.testing.assert_allclose(np.exp(u[:, r]), (1.0 - x[:, r]) * (25.0 - 2.0 * x[:, sd]))
+    expected = coordinates.crown_base_from_ratio(x[:, r], 25.0 - 2.0 * x[:, sd], (0.1, 1.0))
+    np.testing.assert_allclose(u[:, r], expected)
     assert "crown-base" in default_space(nuisance_priors).signature()  # on by default
     per_parameter = default_space(nuisance_priors, ridges=("cover-pai",))
     assert "crown-base" not in per_parameter.signature()

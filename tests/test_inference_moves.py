@@ -59,6 +59,27 @@ def test_fitted_chain_t_samples_a_skewed_target():
     np.testing.assert_allclose(skew, np.sqrt(2.0), atol=0.3)
 
 
+def test_fitted_chain_t_moves_every_walker_in_one_batch():
+    """Its proposal no longer depends on the other walkers: one log-probability call a
+    step, all walkers proposed (two calls, one half each, before the fit)."""
+    calls = []
+
+    def counting_target(x):
+        calls.append(len(x))
+        return _gamma_target(x)
+
+    rng = np.random.default_rng(4)
+    move = ChainStudentMove()
+    sampler = emcee.EnsembleSampler(16, 3, counting_target, vectorize=True, moves=[move])
+    start = rng.gamma(2.0, size=(16, 3))
+    sampler.run_mcmc(start, 5, progress=False)
+    assert calls[1:] == [8] * 10
+    assert move.fit(rng.gamma(2.0, size=(500, 3)))
+    calls.clear()
+    sampler.run_mcmc(None, 5, progress=False)
+    assert calls == [16] * 5
+
+
 def test_chain_t_is_the_ensemble_t_until_fitted_and_refuses_a_singular_fit():
     current = np.random.default_rng(1).normal(size=(4, 3))
     others = [np.random.default_rng(2).normal(size=(8, 3))]

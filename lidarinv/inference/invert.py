@@ -15,6 +15,8 @@ from threadpoolctl import threadpool_limits
 
 from lidarinv.observe.observation import Observation
 
+from .ambiguity import competing_grounds, pulse_width_m
+from .ambiguity import describe as describe_competing
 from .collect import collect_result
 from .likelihood.covariance import covariance_obstacle
 from .likelihood.discrepancy import SIMULATED
@@ -86,13 +88,15 @@ def prepare_problem(
         :func:`.problem.build_problem`, with the simulated discrepancy covariance
         (:func:`.realisations.realisation_covariance`) where the settings ask for it and
         it can apply.
-    start : array (ndim,) or None
+    start : array (ndim,), list of Mode or None
         The sampler's start (unbounded): the pilot MAP (with ``cohorts="auto"``, the
-        chosen model's), or None for the MAP search.
+        chosen model's), the basins of competing grounds with it
+        (:func:`.ambiguity.competing_grounds`), or None for the MAP search.
     report : dict
         ``seconds`` and ``map_converged`` of the simulation, if run, ``notes`` (flags
-        for the result), and with ``cohorts="auto"`` the stand model's choice
-        (:func:`choose_cohorts`).
+        for the result), with ``cohorts="auto"`` the stand model's choice
+        (:func:`choose_cohorts`), and ``competing_grounds`` (m), the MAP's ground first,
+        where other optima explain the shot with the ground elsewhere.
     """
     settings = InversionSettings() if settings is None else settings
     start, report = None, {"notes": []}
@@ -107,10 +111,11 @@ def prepare_problem(
     else:
         problem, estimate = build_problem(observation, settings), None
     settings = problem.settings
+    pilot = problem.log_posterior  # the posterior the MAP search maximised
     if settings.discrepancy_model == SIMULATED:
         obstacle = covariance_obstacle(problem.window, settings.shot_factor)
         if obstacle is None:
-            covariance, start, simulated = realisation_covariance(
+            covariance, _, simulated = realisation_covariance(
                 problem.log_posterior, problem.instrument, rng, settings.realisations,
                 settings.sampler, estimate,
             )  # fmt: skip
@@ -119,13 +124,21 @@ def prepare_problem(
                 variance = fixed_discrepancy(problem.shot, replace(settings, discrepancy=floor))
                 covariance = covariance + np.diag(variance)
             problem = problem.with_fixed_discrepancy(covariance)
+            estimate = simulated.pop("estimate")
             report.update(simulated)
             if not simulated["map_converged"]:
                 report["notes"].append("MAP optimiser did not report convergence")
         else:
             report["notes"].append(f"per-bin discrepancy used instead of realisations: {obstacle}")
-    if start is None and estimate is not None:  # the chosen model's MAP, not searched twice
-        start = estimate.u
+    if estimate is not None:  # the pilot's MAP, not searched twice, and its rivals
+        kept = competing_grounds(
+            lambda u: pilot(u)[:, 0], estimate, problem.space,
+            pulse_width_m(problem.instrument.pulse),
+        )  # fmt: skip
+        start = [mode for mode, _ in kept] if len(kept) > 1 else estimate.u
+        if len(kept) > 1:
+            report["notes"].append(describe_competing(kept))
+            report["competing_grounds"] = [float(elevation) for _, elevation in kept]
     return problem, start, report
 
 
@@ -194,6 +207,7 @@ def _invert(observation, settings, rng, progress, backend_path) -> InversionResu
     if "seconds" in report:
         run.seconds["discrepancy"] = report["seconds"]
     result = collect_result(problem, run, rng)
-    if "cohorts" in report:
-        result.diagnostics["cohorts"] = report["cohorts"]
+    for key in ("cohorts", "competing_grounds"):
+        if key in report:
+            result.diagnostics[key] = report[key]
     return result

@@ -174,7 +174,8 @@ def realisation_covariance(
     start : array (ndim,)
         The pilot MAP (unbounded coordinates), where the sampler may start.
     report : dict
-        ``seconds`` (the simulation's wall time) and ``map_converged``.
+        ``seconds`` (the simulation's wall time), ``map_converged`` and ``estimate`` (the
+        pilot's MAP search).
     """
     settings = RealisationSettings() if settings is None else settings
     sampler = SamplerSettings() if sampler is None else sampler
@@ -190,5 +191,9 @@ def realisation_covariance(
         pilot, instrument, x, rng, settings.plot_diameters, settings.accuracy
     )
     covariance = discrepancy_covariance(residuals, settings.shrinkage)
-    report = {"seconds": time.perf_counter() - clock, "map_converged": estimate.converged}
+    report = {
+        "seconds": time.perf_counter() - clock,
+        "map_converged": estimate.converged,
+        "estimate": estimate,
+    }
     return covariance, estimate.u, report

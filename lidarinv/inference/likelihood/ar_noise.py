@@ -26,10 +26,10 @@ noisier than they are, which errs on the side of wider posteriors.
 """
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.linalg import cholesky, solve_triangular, toeplitz
-from scipy.signal import lfilter
 
 #: Largest AR order fitted.
 MAX_ORDER = 8
@@ -164,10 +164,18 @@ class AutoregressiveNoise:
         if p == 0:
             return x.copy()
         n = x.shape[-1]
-        filtered = lfilter(np.concatenate([[1.0], -self.coefficients]), [1.0], x, axis=-1)
-        out = filtered / np.sqrt(self.innovation_variance)
+        out = x.copy()  # e_t = x_t − Σ φ_k x_(t−k), as p shifted products over the batch
+        for k, phi in enumerate(self.coefficients[: n - 1], start=1):
+            out[..., k:] -= phi * x[..., :-k]
+        out /= np.sqrt(self.innovation_variance)
         head = min(p, n)
-        factor = cholesky(toeplitz(self.head_autocorrelation[:head]), lower=True)
-        leading = np.moveaxis(x[..., :head], -1, 0)
-        out[..., :head] = np.moveaxis(solve_triangular(factor, leading, lower=True), 0, -1)
+        out[..., :head] = x[..., :head] @ self._head_whitening[:head, :head].T
         return out
+
+    @cached_property
+    def _head_whitening(self) -> np.ndarray:
+        """L⁻¹ of the leading p × p block of Σ (lower triangular, so that its leading
+        k × k block whitens the first k < p bins too)."""
+        p = self.order
+        factor = cholesky(toeplitz(self.head_autocorrelation[:p]), lower=True)
+        return solve_triangular(factor, np.eye(p), lower=True)

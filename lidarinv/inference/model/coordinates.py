@@ -9,7 +9,19 @@ joint coordinates (s, v) of :mod:`.cover_pai`.
 **Crown length ratio ℓ** against the mean tree height H̄ = top − TOP_SDS·sd. The waveform
 fixes the crown-base height of the mean tree, B = (1 − ℓ)·H̄, far better than either
 factor: in (top, sd, ℓ) the posterior bends along B = const (ℓ and H̄ strongly
-correlated). Sampling b = ln B instead of ℓ straightens it; |∂ℓ/∂b| = B / H̄.
+correlated). Sampling the crown base instead of ℓ straightens it. With ℓ's prior on
+[ℓ₀, ℓ₁], B lies in [(1 − ℓ₁)·H̄, (1 − ℓ₀)·H̄], and the coordinate
+
+    b = ln(B − B₀) − ln(B₁ − B) + ln(B₁ − B₀) = logit(t) + ln((ℓ₁ − ℓ₀)·H̄),
+    t = (ℓ₁ − ℓ)/(ℓ₁ − ℓ₀),
+
+is ln(B − B₀) wherever B stays clear of its upper end (ln B for the default ℓ₁ = 1) and
+spans ℝ, so that no move leaves the prior (a plain b = ln B had a wall at B = B₁ which a
+quarter of the proposals hit on short stands); |∂ℓ/∂b| = (ℓ₁ − ℓ₀)·t·(1 − t).
+
+**Height sd** against the top height. The normal height family needs a positive mean
+height, sd < top/TOP_SDS; sd's unbounded map is rescaled at each top to end there
+(:func:`height_sd_capped`), so that no move leaves that support either.
 
 **Ground elevation** against the understory. The ground and a low understory (LAI Lu,
 height hu) return one blob, a pulse width wide, whose centroid the waveform fixes to about
@@ -37,6 +49,7 @@ along g at fixed H; top = H + e^g has |∂top/∂g| = e^g.
 import math
 
 import numpy as np
+from scipy.special import expit
 
 from forward.backends import jit, resolve
 
@@ -58,8 +71,8 @@ RIDGE_COORDINATES = ("cover-pai", "crown-base", "ground-centroid", "tallest-stem
 DEFAULT_RIDGES = RIDGE_COORDINATES
 
 
-def crown_base_from_ratio(ratio, mean_height):
-    """The log crown-base height of the mean tree.
+def crown_base_from_ratio(ratio, mean_height, bounds=(0.0, 1.0)):
+    """The crown-base coordinate of the mean tree.
 
     Parameters
     ----------
@@ -67,37 +80,97 @@ def crown_base_from_ratio(ratio, mean_height):
         Crown length ratio ℓ.
     mean_height : array (m)
         H̄.
+    bounds : (float, float)
+        ℓ₀, ℓ₁: the support of ℓ's prior, within [0, 1].
 
     Returns
     -------
     array
-        b = ln((1 − ℓ)·H̄); NaN where H̄ ≤ 0 or ℓ ∉ [0, 1).
+        b = logit((ℓ₁ − ℓ)/(ℓ₁ − ℓ₀)) + ln((ℓ₁ − ℓ₀)·H̄); NaN where H̄ ≤ 0 or ℓ ∉ (ℓ₀, ℓ₁).
     """
     ratio, mean_height = np.asarray(ratio, float), np.asarray(mean_height, float)
+    lower, upper = bounds
     with np.errstate(divide="ignore", invalid="ignore"):
-        base = np.log((1.0 - ratio) * mean_height)
-    bad = ~((ratio >= 0) & (ratio < 1) & (mean_height > 0))
+        t = (upper - ratio) / (upper - lower)
+        base = np.log(t) - np.log1p(-t) + np.log((upper - lower) * mean_height)
+    bad = ~((ratio > lower) & (ratio < upper) & (mean_height > 0))
     return np.where(bad, np.nan, base)
 
 
-def ratio_from_crown_base(b, mean_height):
-    """Crown length ratio from the log crown-base height.
+def ratio_from_crown_base(b, mean_height, bounds=(0.0, 1.0)):
+    """Crown length ratio from the crown-base coordinate.
 
     Parameters
     ----------
     b : array
     mean_height : array (m)
+    bounds : (float, float)
+        ℓ₀, ℓ₁.
 
     Returns
     -------
     ratio, log_jac : arrays
-        ℓ = 1 − e^b/H̄ and log|∂ℓ/∂b|; NaN where H̄ ≤ 0.
+        ℓ = ℓ₀ + (ℓ₁ − ℓ₀)·(1 − t), t the logistic of b − ln((ℓ₁ − ℓ₀)·H̄), and log|∂ℓ/∂b|;
+        NaN where H̄ ≤ 0.
     """
     mean_height = np.asarray(mean_height, float)
+    lower, upper = bounds
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
         mean_height = np.where(mean_height > 0, mean_height, np.nan)
-        relative = np.exp(b) / mean_height
-        return 1.0 - relative, np.log(relative)
+        z = b - np.log((upper - lower) * mean_height)
+        log_jac = np.log(upper - lower) - np.logaddexp(0.0, -z) - np.logaddexp(0.0, z)
+        ratio = np.minimum(lower + (upper - lower) * expit(-z), upper)  # 1 − t = expit(−z)
+        return ratio, log_jac
+
+
+def _sd_map_scale(top, w_lower, w_upper, log_scale, top_sds):
+    """k of :func:`height_sd_capped`; NaN where the top admits no sd of the prior."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cap = np.asarray(top, float) / top_sds
+        w_cap = np.log(cap) if log_scale else cap
+        k = (np.minimum(w_upper, w_cap) - w_lower) / (w_upper - w_lower)
+    return np.where(k > 0, k, np.nan)
+
+
+def height_sd_capped(sd, top, w_lower, w_upper, log_scale, top_sds):
+    """Rescale the height sd's unbounded map to end at the largest sd a top admits.
+
+    Parameters
+    ----------
+    sd : array (m)
+        sd from its prior's map, within the prior's support.
+    top : array (m)
+        Top height.
+    w_lower, w_upper : float
+        The prior's support in its map's scale w (sd, or ln sd for a log-scale prior).
+    log_scale : bool
+    top_sds : float
+        The mean height top − ``top_sds``·sd must stay positive.
+
+    Returns
+    -------
+    sd, log_jac : arrays
+        w' = w₀ + (w − w₀)·k, k = (min(w₁, w(top/top_sds)) − w₀)/(w₁ − w₀), and the
+        log-Jacobian to add to the prior map's: ln k, plus w' − w on a log scale;
+        NaN where the top admits no sd of the prior (k ≤ 0).
+    """
+    sd = np.asarray(sd, float)
+    k = _sd_map_scale(top, w_lower, w_upper, log_scale, top_sds)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.log(sd) if log_scale else sd
+        w_new = w_lower + (w - w_lower) * k
+        log_jac = np.log(k) + (w_new - w if log_scale else 0.0)
+        return (np.exp(w_new) if log_scale else w_new), log_jac
+
+
+def height_sd_uncapped(sd, top, w_lower, w_upper, log_scale, top_sds):
+    """The inverse of :func:`height_sd_capped`: sd in the prior's own map."""
+    sd = np.asarray(sd, float)
+    k = _sd_map_scale(top, w_lower, w_upper, log_scale, top_sds)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.log(sd) if log_scale else sd
+        w_old = w_lower + (w - w_lower) / k
+        return np.exp(w_old) if log_scale else w_old
 
 
 def understory_centroid(lai, height, rho_ratio, slope=INTERCEPTION_SLOPE):
@@ -182,8 +255,9 @@ def ridges_from_unbounded(
         overwritten in place.
     joint : tuple or None
         (cover column, PAI column, cover bounds, PAI bounds) of the cover–PAI coordinates.
-    base : int or None
-        Column of the crown-base coordinate (the crown length ratio's).
+    base : tuple or None
+        (column, ℓ₀, ℓ₁) of the crown-base coordinate: the crown length ratio's column and
+        its prior's support.
     centroid : tuple or None
         (ground column, lower, stretch) of the ground-centroid coordinate.
     inputs : (array of int, array of float)
@@ -222,7 +296,8 @@ def ridges_from_unbounded(
         )
         log_jac[:, a] = 0.0
     if base is not None:
-        x[:, base], log_jac[:, base] = ratio_from_crown_base(u[:, base], top - top_sds * sd)
+        r, lower, upper = base
+        x[:, r], log_jac[:, r] = ratio_from_crown_base(u[:, r], top - top_sds * sd, (lower, upper))
     if centroid is not None:
         g, lower, stretch = centroid
         level = lower + (x[:, g] - lower) * stretch
@@ -241,19 +316,27 @@ def _value(x, r, column, fixed):
 
 @jit(error_model="numpy")
 def _crown_and_ground(u, x, log_jac, base, centroid, columns, fixed, top_sds, slope):
-    """Crown length ratio from the crown base (``base`` ≥ 0: its column) and ground
-    elevation from the ground-plus-understory centroid (``centroid``: column, lower,
-    stretch; column < 0 for none). ``columns``/``fixed``: top height, height sd,
-    understory LAI, understory height, ρv/ρg, each a column of x or FIXED and a value."""
-    g = int(centroid[0])
+    """Crown length ratio from the crown base (``base``: column, ℓ₀, ℓ₁; column < 0 for
+    none) and ground elevation from the ground-plus-understory centroid (``centroid``:
+    column, lower, stretch; column < 0 for none). ``columns``/``fixed``: top height, height
+    sd, understory LAI, understory height, ρv/ρg, each a column of x or FIXED and a value."""
+    g, c = int(centroid[0]), int(base[0])
+    width = base[2] - base[1]
     for r in range(u.shape[0]):
-        if base >= 0:
+        if c >= 0:
             top = _value(x, r, columns[0], fixed[0])
             mean = top - top_sds * _value(x, r, columns[1], fixed[1])
             mean = mean if mean > 0.0 else math.nan
-            relative = math.exp(u[r, base]) / mean
-            x[r, base] = 1.0 - relative
-            log_jac[r, base] = math.log(relative)
+            z = u[r, c] - math.log(width * mean)
+            # 1 − t = logistic(−z) and ln t + ln(1 − t), without overflow for large |z|
+            if z >= 0.0:
+                rest = math.exp(-z) / (1.0 + math.exp(-z))
+                log_both = -z - 2.0 * math.log1p(math.exp(-z))
+            else:
+                rest = 1.0 / (1.0 + math.exp(z))
+                log_both = z - 2.0 * math.log1p(math.exp(z))
+            x[r, c] = min(base[1] + width * rest, base[2])
+            log_jac[r, c] = math.log(width) + log_both
         if g >= 0:
             lai = _value(x, r, columns[2], fixed[2])
             height = _value(x, r, columns[3], fixed[3])
@@ -273,6 +356,5 @@ def _crown_and_ground_compiled(u, x, log_jac, base, centroid, columns, fixed, to
     """Write the crown length ratio and the ground elevation from their ridge coordinates
     in place (:func:`_crown_and_ground`); ``base`` None or ``centroid`` None skip one."""
     centroid = np.array([-1.0, 0.0, 1.0] if centroid is None else centroid, float)
-    _crown_and_ground(
-        u, x, log_jac, -1 if base is None else base, centroid, columns, fixed, top_sds, slope
-    )
+    base = np.array([-1.0, 0.0, 1.0] if base is None else base, float)
+    _crown_and_ground(u, x, log_jac, base, centroid, columns, fixed, top_sds, slope)

@@ -131,12 +131,16 @@ class ParameterSpace:
         )
         needed = ("crown_length_ratio", "top_height", "height_sd")
         self._base = (
-            self.names.index("crown_length_ratio")
+            (
+                self.names.index("crown_length_ratio"),
+                *_support(self.by_name["crown_length_ratio"], upper=1.0),
+            )
             if "crown-base" in self.ridges
             and "crown_length_ratio" in self.names
             and set(needed) <= set(names)
             else None
         )
+        self._sd_cap = self._sd_cap_map()
         self._centroid = self._centroid_map() if "ground-centroid" in self.ridges else None
         stem = ("top_height", TALLEST_STEM)
         self._stem = (
@@ -165,7 +169,9 @@ class ParameterSpace:
         """
         joint = "cover-pai-joint-v2" if self._joint is not None else "per-parameter"
         if self._base is not None:
-            joint += ", crown-base-v1"
+            joint += ", crown-base-v2"
+        if self._sd_cap is not None:
+            joint += ", height-sd-capped-v1"
         if self._centroid is not None:
             joint += ", ground-centroid-v1"
         if self._stem is not None:
@@ -250,6 +256,12 @@ class ParameterSpace:
         if self._stem is not None:  # before the crown base, which needs the top
             top, stem = self._stem
             x[:, top], log_jac[:, top] = coordinates.top_from_stem_gap(x[:, stem], u[:, top])
+        if self._sd_cap is not None:  # after the top, before the crown base
+            sd, *form = self._sd_cap
+            x[:, sd], extra = coordinates.height_sd_capped(
+                x[:, sd], self._column(x, "top_height"), *form, TOP_SDS
+            )
+            log_jac[:, sd] += extra
         coordinates.ridges_from_unbounded(
             u, x, log_jac, self._joint, self._base, self._centroid, self._ridge_inputs,
             TOP_SDS, self.interception_slope, backend=self.backend if backend is None else backend,
@@ -269,20 +281,25 @@ class ParameterSpace:
             NaN or ±inf where x lies outside the support.
         """
         x = np.atleast_2d(np.asarray(x, float))
+        mapped = x.copy()  # the values the priors' own maps give
         if self._centroid is not None:
             g, lower, stretch = self._centroid
             centroid = x[:, g] + self._understory_centroid(x)
-            x = x.copy()
-            x[:, g] = lower + (centroid - lower) / stretch
-        u = self._priors.to_unbounded(x)
+            mapped[:, g] = lower + (centroid - lower) / stretch
+        if self._sd_cap is not None:
+            sd, *form = self._sd_cap
+            mapped[:, sd] = coordinates.height_sd_uncapped(
+                x[:, sd], self._column(x, "top_height"), *form, TOP_SDS
+            )
+        u = self._priors.to_unbounded(mapped)
         if self._joint is not None:
             c, a, cover_bounds, pai_bounds = self._joint
             u[:, c], u[:, a] = coordinates.from_cover_pai_bounded(
                 x[:, c], x[:, a], cover_bounds, pai_bounds, self.interception_slope
             )
         if self._base is not None:
-            r = self._base
-            u[:, r] = coordinates.crown_base_from_ratio(x[:, r], self._mean(x))
+            r, *bounds = self._base
+            u[:, r] = coordinates.crown_base_from_ratio(x[:, r], self._mean(x), bounds)
         if self._stem is not None:
             top, stem = self._stem
             u[:, top] = coordinates.stem_gap_from_top(x[:, top], x[:, stem])
@@ -309,6 +326,14 @@ class ParameterSpace:
             self._column(x, name) for name in ("understory_lai", "understory_height", "rho_ratio")
         )
         return coordinates.understory_centroid(lai, height, ratio, self.interception_slope)
+
+    def _sd_cap_map(self):
+        """(column, w₀, w₁, log scale) of the height sd's capped map
+        (:func:`.coordinates.height_sd_capped`), or None where sd is not free."""
+        if "height_sd" not in self.names or "top_height" not in self.by_name:
+            return None
+        form = self.by_name["height_sd"].prior.form()
+        return self.names.index("height_sd"), form.w_lower, form.w_upper, form.log_scale
 
     def _centroid_map(self):
         """(column, lower, stretch) of the ground-centroid coordinate, or None where it does

@@ -213,8 +213,9 @@ def run_sampler(
         E.g. an ``HDFBackend``; a backend that already holds steps is resumed.
     progress : bool
         Show a progress bar.
-    start : array (ndim,), optional
-        Centre of the initial ball (unbounded); default the MAP estimate.
+    start : array (ndim,) or list of Mode, optional
+        Centre of the initial ball (unbounded), or the basins to start walkers in (each
+        in proportion to its Laplace mass under this posterior); default the MAP estimate.
     coordinates : str, optional
         What the sampled coordinates are (see
         :meth:`lidarinv.inference.model.space.ParameterSpace.signature`); stored with an
@@ -274,8 +275,13 @@ def run_sampler(
             if not estimate.converged:
                 flags.append("MAP optimiser did not report convergence")
         else:
-            centre = np.asarray(start, float)
-            modes = [Mode(centre, 0.0, laplace_covariance(log_prob, centre))]
+            centres = [m.u for m in start] if isinstance(start, list) else [start]
+            centres = [np.asarray(centre, float) for centre in centres]
+            values = log_prob(np.array(centres))
+            modes = [
+                Mode(centre, float(value), laplace_covariance(log_prob, centre))
+                for centre, value in zip(centres, values)
+            ]
         state = initial_ball(log_prob, modes, s.ball, n_walkers, rng)
     seconds = {"start": time.perf_counter() - clock}
     clock = time.perf_counter()

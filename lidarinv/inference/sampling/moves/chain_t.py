@@ -47,6 +47,11 @@ class ChainStudentMove(EnsembleStudentMove):
         self.mean, self.chol = fitted
         return True
 
+    def splits(self) -> int:
+        """Once fitted, the proposal is one fixed t for every walker: all of them move in
+        one batch (one log-probability call a step instead of two)."""
+        return self.nsplits if self.mean is None else 1
+
     def get_proposal(self, s, c, random):
         """emcee's ``RedBlueMove.get_proposal``: from the fitted t, or the ensemble-t's until the
         first fit.

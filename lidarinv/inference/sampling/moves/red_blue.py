@@ -35,12 +35,13 @@ class BatchAcceptance(RedBlueMove):
             )
         self.setup(state.coords)
         accepted = np.zeros(n_walkers, dtype=bool)
-        group = np.arange(n_walkers) % self.nsplits
+        splits = self.splits()
+        group = np.arange(n_walkers) % splits
         if self.randomize_split:
             model.random.shuffle(group)
-        for split in range(self.nsplits):
+        for split in range(splits):
             moving = group == split
-            halves = [state.coords[group == j] for j in range(self.nsplits)]
+            halves = [state.coords[group == j] for j in range(splits)]
             others = halves[:split] + halves[split + 1 :]
             proposal, log_factor = self.get_proposal(halves[split], others, model.random)
             log_prob, blobs = model.compute_log_prob_fn(proposal)
@@ -51,3 +52,8 @@ class BatchAcceptance(RedBlueMove):
                 state, State(proposal, log_prob=log_prob, blobs=blobs), accepted, moving
             )
         return state, accepted
+
+    def splits(self) -> int:
+        """Groups moved in turn: emcee's ``nsplits``; a move whose proposal does not
+        depend on the other walkers may move them all in one batch."""
+        return self.nsplits

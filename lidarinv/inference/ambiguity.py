@@ -1,0 +1,79 @@
+"""Competing explanations of a shot: optima that put the ground at another return.
+
+A lone return can be a bare ground or the top of a dense canopy over a ground lost in the
+noise; a low return under a bright layer can be the ground or an understory. The MAP
+search polishes several optima in separate basins (:func:`.sampling.start.find_map`);
+:func:`competing_grounds` keeps those whose ground lies a pulse width or more from the
+MAP's and whose Laplace mass is within :data:`MASS_WINDOW` of the MAP's. The sampler then
+starts walkers in each of them, and the result says so, so that a second explanation
+shows in the posterior and in the diagnostics instead of being left unexplored.
+"""
+
+import numpy as np
+
+from .sampling.start import MapEstimate, Mode, laplace_covariance
+
+#: Largest log ratio of Laplace masses exp(log p)·√det Σ at which another optimum still
+#: counts as an explanation: a posterior odds of 1 : 20 (log 20 ≈ 3).
+MASS_WINDOW = np.log(20.0)
+
+#: Pulse area left out in each tail for the width that separates two grounds: the central
+#: 80 %, about the full width at half maximum of a Gaussian pulse.
+PULSE_TAIL = 0.1
+
+
+def pulse_width_m(pulse) -> float:
+    """Width (m) of a pulse's central part, :data:`PULSE_TAIL` left out in each tail."""
+    low, high = pulse.support(PULSE_TAIL)
+    return float(high - low)
+
+
+def competing_grounds(log_prob, estimate: MapEstimate, space, separation_m) -> list:
+    """The MAP and the optima that place the ground elsewhere with a comparable mass.
+
+    Parameters
+    ----------
+    log_prob : callable
+        Vectorised log-density of unbounded coordinates, (k, ndim) → (k,).
+    estimate : MapEstimate
+        A MAP search with its polished optima.
+    space : ParameterSpace
+        With a free ``ground_elevation``.
+    separation_m : float (m)
+        Least ground difference from every mode kept before.
+
+    Returns
+    -------
+    list of (Mode, float)
+        The MAP's mode first, then each competing one, with its ground elevation (m); the
+        MAP alone where none competes or the ground is not free.
+    """
+    best = Mode(estimate.u, estimate.log_prob, estimate.covariance)
+    if "ground_elevation" not in space.names or estimate.covariance is None:
+        return [(best, np.nan)]
+    column = space.names.index("ground_elevation")
+    ground = lambda u: float(space.from_unbounded(u[None, :])[0][0, column])  # noqa: E731
+    kept = [(best, ground(best.u))]
+    for u, value in sorted(estimate.optima, key=lambda optimum: -optimum[1]):
+        elevation = ground(u)
+        if any(abs(elevation - other) < separation_m for _, other in kept):
+            continue
+        mode = Mode(np.asarray(u, float), value, laplace_covariance(log_prob, u))
+        if mode.log_mass >= best.log_mass - MASS_WINDOW:
+            kept.append((mode, elevation))
+    return kept
+
+
+def describe(kept) -> str | None:
+    """The result's flag for competing grounds, or None for the MAP alone."""
+    if len(kept) < 2:
+        return None
+    best_mass = kept[0][0].log_mass
+    others = ", ".join(
+        f"{elevation:.2f} m (mass ratio {np.exp(mode.log_mass - best_mass):.2g})"
+        for mode, elevation in kept[1:]
+    )
+    return (
+        f"ground ambiguous: the MAP puts it at {kept[0][1]:.2f} m, other explanations at "
+        f"{others}; the walkers started in each (see the ground's posterior)"
+    )
