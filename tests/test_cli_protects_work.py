@@ -136,9 +136,10 @@ def test_walkers_below_the_ensembles_minimum_are_refused_before_sampling(
 ):
     assert main([*INVERT_EXAMPLE, "-o", str(tmp_path / "p.h5"), "--walkers", "8"]) == 2
     err = capsys.readouterr().err
-    assert "at least 26 walkers for 12 sampled parameters" in err
+    # cohorts "auto" may sample the two-cohort model: three parameters more
+    assert "at least 32 walkers for 15 sampled parameters" in err
     assert fake_inversion == [] and not (tmp_path / "p.h5").exists()
-    assert main([*INVERT_EXAMPLE, "-o", str(tmp_path / "p.h5"), "--walkers", "26"]) == 0
+    assert main([*INVERT_EXAMPLE, "-o", str(tmp_path / "p.h5"), "--walkers", "32"]) == 0
 
 
 def test_two_cohorts_need_more_walkers_and_auto_counts_them_too(tmp_path, capsys, fake_inversion):

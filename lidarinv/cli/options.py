@@ -52,7 +52,7 @@ def add_inversion_options(parser) -> None:
     parser.add_argument(
         "--cohorts",
         choices=("1", "2", "auto"),
-        help="height cohorts of the stand: 1 (default), 2 (a lower storey), or auto: the "
+        help="height cohorts of the stand: 1, 2 (a lower storey), or auto (default): the "
         "one with the lower BIC at its MAP",
     )
     parser.add_argument(

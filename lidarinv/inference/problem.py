@@ -7,7 +7,7 @@ model stage (:class:`.model.waveform.ShotModel`), the likelihood stage
 (:class:`.likelihood.gaussian.ShotLikelihood`) and the posterior joining them.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -22,7 +22,7 @@ from .model.stand import StandMapping, default_template
 from .model.two_cohort import TwoCohortMapping
 from .model.waveform import ShotModel
 from .posterior import LogPosterior
-from .settings import InversionSettings
+from .settings import AUTO, InversionSettings
 from .shot import Shot
 
 
@@ -124,7 +124,9 @@ def build_problem(obs: Observation, settings: InversionSettings | None = None) -
     -------
     InversionProblem
         With the discrepancy the observation fixes (a ``realisations`` discrepancy starts
-        from ``observed``: :func:`.invert.prepare_problem` simulates it).
+        from ``observed``: :func:`.invert.prepare_problem` simulates it). A problem holds
+        one stand model: with ``cohorts="auto"`` the one-cohort one, which
+        :func:`.invert.choose_cohorts` weighs against the two-cohort one.
 
     Raises
     ------
@@ -147,11 +149,8 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
     -------
     InversionProblem
     """
-    if settings.cohorts not in (1, 2):
-        raise ValueError(
-            f"a problem has one stand model: cohorts {settings.cohorts!r} is chosen between "
-            "two problems by invert_shot"
-        )
+    if settings.cohorts == AUTO:  # one stand model a problem (see build_problem)
+        settings = replace(settings, cohorts=1)
     top = DEFAULT_STRUCTURE_PRIORS["top_height"]
     nuisance = shot.nuisance_priors(settings.ground_prior_sd_m, (top.lower, top.upper))
     correlation = shot.noise_correlation() if settings.correlated_noise else None

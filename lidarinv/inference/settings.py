@@ -146,9 +146,10 @@ class InversionSettings:
     cohorts : int or str
         Height cohorts of the stand: 1, one truncated-normal height family; 2, a lower
         storey beside it (:mod:`.model.two_cohort`), for multi-layer canopies and
-        emergents; ``"auto"``, the one with the lower BIC at its MAP
-        (:func:`.invert.choose_cohorts`; one MAP search more). A priors file
-        turns 2 on with a table for a parameter of :data:`.model.two_cohort.COHORT2`.
+        emergents; ``"auto"`` (the default), the one with the lower BIC at its MAP
+        (:func:`.invert.choose_cohorts`; one MAP search more), and 1 where the stand is
+        conditioned on its tallest stem. A priors file turns 2 on with a table for a
+        parameter of :data:`.model.two_cohort.COHORT2`.
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
         cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None
@@ -195,11 +196,13 @@ class InversionSettings:
     model: ModelSettings = field(default_factory=ModelSettings)
     realisations: RealisationSettings = field(default_factory=RealisationSettings)
     tallest_stem: bool = False
-    cohorts: int = 1
+    cohorts: int | str = AUTO
 
     def __post_init__(self):
         if self.cohorts not in COHORT_COUNTS:
             raise ValueError(f"cohorts must be one of {COHORT_COUNTS}, got {self.cohorts!r}")
+        if self.cohorts == AUTO and self.tallest_stem:  # only one cohort has that latent
+            object.__setattr__(self, "cohorts", 1)
         if self.cohorts != 1 and self.tallest_stem:
             raise ValueError("a two-cohort stand cannot be conditioned on its tallest stem")
 
