@@ -137,7 +137,7 @@ def test_cli_invert_example_writes_posterior_and_plots(tmp_path, capsys):
     out = tmp_path / "post.h5"
     code = main(
         ["invert", "--example", "gedi-mixed", "--max-steps", "200", "--walkers", "28",
-         "-o", str(out), "--plots", str(tmp_path / "plots"), "--quiet"]
+         "--cohorts", "1", "-o", str(out), "--plots", str(tmp_path / "plots"), "--quiet"]
     )  # fmt: skip
     text = capsys.readouterr().out
     assert code == 0, text
