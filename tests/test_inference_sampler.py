@@ -16,6 +16,7 @@ from lidarinv.inference.sampling import SamplerSettings, burn_in, find_map, run_
 from lidarinv.inference.sampling.ensemble import BatchedSampler, sample_in_chunks
 from lidarinv.inference.sampling.moves import MOVES
 from lidarinv.inference.sampling.sampler import _may_converge
+from lidarinv.inference.sampling.start import Mode
 
 
 class LinearGaussianToy:
@@ -333,3 +334,22 @@ def test_walkers_start_in_every_basin_in_proportion_to_its_mass():
     )
     assert single.start_modes == 1
     assert np.mean(single.chain[single.burn :, :, 0] < 0) in (0.0, 1.0)
+
+
+def test_walkers_start_in_every_basin_given_and_skip_one_outside_the_support():
+    """``start`` as a list of modes: a mode whose log-probability is −inf (here NaN
+    coordinates) gets no walkers; the others share them."""
+    rng = np.random.default_rng(9)
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
+    toy = LinearGaussianToy(space, rng)
+    settings = SamplerSettings(n_walkers=16, max_steps=1, check_every=1)
+    centre = space.to_unbounded(toy.truth[None, :])[0]
+    outside = np.full(3, np.nan)
+    run = run_sampler(
+        toy,
+        space,
+        rng,
+        settings,
+        start=[Mode(centre, 0.0, np.eye(3)), Mode(outside, 0.0, np.eye(3))],
+    )
+    assert run.chain.shape[1] == 16 and np.all(np.isfinite(run.chain))

@@ -278,9 +278,12 @@ def run_sampler(
             centres = [m.u for m in start] if isinstance(start, list) else [start]
             centres = [np.asarray(centre, float) for centre in centres]
             values = log_prob(np.array(centres))
+            if not np.any(np.isfinite(values)):  # one start, however bad: its ball
+                centres, values = centres[:1], np.zeros(1)
             modes = [
                 Mode(centre, float(value), laplace_covariance(log_prob, centre))
                 for centre, value in zip(centres, values)
+                if np.isfinite(value)
             ]
         state = initial_ball(log_prob, modes, s.ball, n_walkers, rng)
     seconds = {"start": time.perf_counter() - clock}
