@@ -16,7 +16,6 @@ from lidarinv.inference.sampling import SamplerSettings, burn_in, find_map, run_
 from lidarinv.inference.sampling.ensemble import BatchedSampler, sample_in_chunks
 from lidarinv.inference.sampling.moves import MOVES
 from lidarinv.inference.sampling.sampler import _may_converge
-from lidarinv.inference.sampling.start import Mode
 
 
 class LinearGaussianToy:
@@ -337,7 +336,7 @@ def test_walkers_start_in_every_basin_in_proportion_to_its_mass():
 
 
 def test_walkers_start_in_every_basin_given_and_skip_one_outside_the_support():
-    """``start`` as a list of modes: a mode whose log-probability is −inf (here NaN
+    """``start`` as several optima: one whose log-probability is −inf (here NaN
     coordinates) gets no walkers; the others share them."""
     rng = np.random.default_rng(9)
     space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
@@ -350,6 +349,6 @@ def test_walkers_start_in_every_basin_given_and_skip_one_outside_the_support():
         space,
         rng,
         settings,
-        start=[Mode(centre, 0.0, np.eye(3)), Mode(outside, 0.0, np.eye(3))],
+        start=np.array([centre, outside]),
     )
     assert run.chain.shape[1] == 16 and np.all(np.isfinite(run.chain))

@@ -20,12 +20,13 @@ from .ambiguity import describe as describe_competing
 from .collect import collect_result
 from .likelihood.covariance import covariance_obstacle
 from .likelihood.discrepancy import SIMULATED
-from .problem import InversionProblem, build_problem, fixed_discrepancy
+from .problem import InversionProblem, build_problem, fixed_discrepancy, problem_for_shot
 from .realisations import realisation_covariance
 from .result import InversionResult
 from .sampling.sampler import run_sampler
 from .sampling.start import find_map
 from .settings import AUTO, InversionSettings
+from .shot import Shot
 
 #: BIC difference below which the two stand models are reported as undecided: a Bayes
 #: factor under about e (Kass & Raftery 1995: "not worth more than a bare mention").
@@ -88,9 +89,9 @@ def prepare_problem(
         :func:`.problem.build_problem`, with the simulated discrepancy covariance
         (:func:`.realisations.realisation_covariance`) where the settings ask for it and
         it can apply.
-    start : array (ndim,), list of Mode or None
+    start : array (ndim,), array (k, ndim) or None
         The sampler's start (unbounded): the pilot MAP (with ``cohorts="auto"``, the
-        chosen model's), the basins of competing grounds with it
+        chosen model's), or it and the optima of competing grounds
         (:func:`.ambiguity.competing_grounds`), or None for the MAP search.
     report : dict
         ``seconds`` and ``map_converged`` of the simulation, if run, ``notes`` (flags
@@ -115,7 +116,7 @@ def prepare_problem(
     if settings.discrepancy_model == SIMULATED:
         obstacle = covariance_obstacle(problem.window, settings.shot_factor)
         if obstacle is None:
-            covariance, _, simulated = realisation_covariance(
+            covariance, simulated = realisation_covariance(
                 problem.log_posterior, problem.instrument, rng, settings.realisations,
                 settings.sampler, estimate,
             )  # fmt: skip
@@ -135,7 +136,7 @@ def prepare_problem(
             lambda u: pilot(u)[:, 0], estimate, problem.space,
             pulse_width_m(problem.instrument.pulse),
         )  # fmt: skip
-        start = [mode for mode, _ in kept] if len(kept) > 1 else estimate.u
+        start = np.array([mode.u for mode, _ in kept]) if len(kept) > 1 else estimate.u
         if len(kept) > 1:
             report["notes"].append(describe_competing(kept))
             report["competing_grounds"] = [float(elevation) for _, elevation in kept]
@@ -167,9 +168,9 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
         ``chosen`` (1 or 2), ``map_log_likelihood`` and ``bic`` per model, and
         ``undecided``: the BICs differ by less than :data:`BIC_UNDECIDED`.
     """
-    candidates = {}
+    shot, candidates = Shot.from_observation(observation, settings), {}  # analysed once
     for cohorts in (1, 2):
-        problem = build_problem(observation, replace(settings, cohorts=cohorts))
+        problem = problem_for_shot(shot, replace(settings, cohorts=cohorts))
         post, space = problem.log_posterior, problem.space
         estimate = find_map(lambda u, post=post: post(u)[:, 0], space, rng, settings.sampler)
         x, _ = space.from_unbounded(estimate.u[None, :])

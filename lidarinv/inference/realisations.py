@@ -171,11 +171,9 @@ def realisation_covariance(
     covariance : array (bins, bins) (DN²)
         C of :func:`discrepancy_covariance`, for :meth:`.posterior.LogPosterior.
         with_fixed_discrepancy`.
-    start : array (ndim,)
-        The pilot MAP (unbounded coordinates), where the sampler may start.
     report : dict
         ``seconds`` (the simulation's wall time), ``map_converged`` and ``estimate`` (the
-        pilot's MAP search).
+        pilot's MAP search, whose optimum the sampler may start from).
     """
     settings = RealisationSettings() if settings is None else settings
     sampler = SamplerSettings() if sampler is None else sampler
@@ -196,4 +194,4 @@ def realisation_covariance(
         "map_converged": estimate.converged,
         "estimate": estimate,
     }
-    return covariance, estimate.u, report
+    return covariance, report

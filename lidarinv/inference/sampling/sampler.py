@@ -213,9 +213,10 @@ def run_sampler(
         E.g. an ``HDFBackend``; a backend that already holds steps is resumed.
     progress : bool
         Show a progress bar.
-    start : array (ndim,) or list of Mode, optional
-        Centre of the initial ball (unbounded), or the basins to start walkers in (each
-        in proportion to its Laplace mass under this posterior); default the MAP estimate.
+    start : array (ndim,) or (k, ndim), optional
+        Centre of the initial ball (unbounded), or the optima of k basins to start walkers
+        in (each in proportion to its Laplace mass under this posterior; none in a basin
+        whose optimum has log-probability −inf); default the MAP estimate.
     coordinates : str, optional
         What the sampled coordinates are (see
         :meth:`lidarinv.inference.model.space.ParameterSpace.signature`); stored with an
@@ -275,9 +276,8 @@ def run_sampler(
             if not estimate.converged:
                 flags.append("MAP optimiser did not report convergence")
         else:
-            centres = [m.u for m in start] if isinstance(start, list) else [start]
-            centres = [np.asarray(centre, float) for centre in centres]
-            values = log_prob(np.array(centres))
+            centres = np.atleast_2d(np.asarray(start, float))
+            values = log_prob(centres)
             if not np.any(np.isfinite(values)):  # one start, however bad: its ball
                 centres, values = centres[:1], np.zeros(1)
             modes = [
