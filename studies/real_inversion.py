@@ -27,7 +27,17 @@ from lidarinv.io import iter_observations, read_gedi_l2a, read_gedi_l2b, read_lv
 from lidarinv.observe import Observation, analyse
 
 HERE = Path(__file__).resolve().parent
-QUANTITIES = ("ground", "rh98", "rh98_model_convention", "cover")
+#: Comparisons: label → (posterior quantity, product value). ``rh98`` is the model
+#: waveform's RH98; ``rh98_model_convention`` the product's moved by what its convention
+#: adds on the shot's own waveform; ``rh98_product`` the posterior's RH98 in the product's
+#: convention (:func:`lidarinv.inference.product_metrics.product_relative_heights`).
+QUANTITIES = {
+    "ground": ("ground", "ground"),
+    "rh98": ("rh98", "rh98"),
+    "rh98_model_convention": ("rh98", "rh98_model_convention"),
+    "rh98_product": ("rh98_product", "rh98"),
+    "cover": ("cover", "cover"),
+}
 #: Margin (m) by which a height interval is widened before asking if it holds the
 #: product: the products' own errors are of that size.
 WIDENING_M = 1.0
@@ -93,7 +103,8 @@ def invert_one(job):
     record["cohorts"] = result.settings["cohorts"]
     record["predictive_p_value"] = result.diagnostics["predictive_p_value"]
     record["posterior"] = {}
-    names = {"ground": "ground_elevation", "rh98": "rh98", "cover": _cover_name(result)}
+    names = {"ground": "ground_elevation", "rh98": "rh98", "rh98_product": "rh98_product",
+             "cover": _cover_name(result)}  # fmt: skip
     for quantity, name in names.items():
         values = result.column(name) if name else np.array([])
         q = np.percentile(values, (5, 50, 95)) if values.size else np.full(3, np.nan)
@@ -140,12 +151,13 @@ def statistics(records, instrument) -> dict:
         "two_cohorts": int(sum(r.get("cohorts") == 2 for r in done)),
         "misfit_flagged": int(sum(r.get("predictive_p_value", 1.0) < 0.01 for r in done)),
     }
-    for q in QUANTITIES:
-        name = q.removesuffix("_model_convention")  # the posterior quantity compared
+    for q, (name, key) in QUANTITIES.items():
         triples = [
-            (r["posterior"][name], r["product"][q], r)
+            (r["posterior"][name], r["product"][key], r)
             for r in done
-            if np.isfinite(r["product"][q]) and np.all(np.isfinite(r["posterior"][name]))
+            if name in r["posterior"]
+            and np.isfinite(r["product"][key])
+            and np.all(np.isfinite(r["posterior"][name]))
         ]
         if not triples:
             continue

@@ -36,10 +36,13 @@ def test_a_single_peak_real_shot_puts_the_ground_at_the_peak_under_a_low_canopy(
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")
 def test_a_two_layer_real_shot_is_fitted_with_two_cohorts_when_they_are_available():
-    obs, _ = max(_analysed("lvis-l1b"), key=lambda pair: pair[1].n_modes)
+    obs, analysis = max(_analysed("lvis-l1b"), key=lambda pair: pair[1].n_modes)
     result = invert_shot(obs, replace(SHORT, cohorts="auto"), rng=np.random.default_rng(4))
     choice = result.diagnostics["cohorts"]
     assert choice["chosen"] == 2
     assert choice["bic"][2] < choice["bic"][1] - 10.0 and not choice["undecided"]
     assert result.settings["cohorts"] == 2
     assert "cohort2_fraction" in result.parameter_names
+    # in LVIS L2's convention (recorded counts) the posterior RH98 is the shot's own
+    product_rh98 = np.median(result.column("rh98_product"))
+    assert abs(product_rh98 - analysis.rh[98]) < 1.0

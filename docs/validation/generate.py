@@ -240,7 +240,10 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
         "the 90 % interval, *widened* in it widened by 1 m (the products' own errors are of "
         "that size); ``rh98_model_convention`` compares the posterior's RH98 (of the model "
         "waveform) with the product's moved by what the product's RH convention adds on the "
-        "shot's own waveform.\n\n"
+        "shot's own waveform; ``rh98_product`` is the posterior's RH98 in the product's "
+        "convention (each sample's expected recorded waveform between the shot's signal end "
+        "and start; on LVIS the noise level spread over that extent dominates it, so it "
+        "says more about the extent than about the canopy).\n\n"
     )
     if s.get("priors"):
         text += f"Priors file: ``{' '.join(s['priors'].split())}``.\n\n"

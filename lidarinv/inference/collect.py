@@ -3,10 +3,14 @@ collected into an :class:`.result.InversionResult`."""
 
 import numpy as np
 
+from lidarinv.observe import processing_settings
+
 from .likelihood.gaussian import model_moments
 from .model.tallest_stem import disc_area
+from .model.waveform import RH_LEVELS
 from .posterior import BLOB_NAMES, BLOB_UNITS
 from .problem import InversionProblem
+from .product_metrics import product_relative_heights
 from .result import QUANTILES, InversionResult
 from .sampling.sampler import SamplerRun
 
@@ -46,6 +50,53 @@ def footprint_top_height(problem: InversionProblem, x, density_per_ha, rng) -> n
     area = disc_area(problem.instrument.footprint_sigma_m)
     uniform = rng.uniform(size=x.shape[0])
     return mapping.tallest_in_area(values, area, uniform)
+
+
+#: Derived quantities: the RH of :data:`.model.waveform.RH_LEVELS` in the product's convention.
+PRODUCT_RH = {f"{name}_product": level for name, level in RH_LEVELS.items()}
+#: Posterior samples evaluated at once for :func:`product_heights`.
+_CHUNK = 1024
+
+
+def product_heights(problem: InversionProblem, x, drawn) -> dict:
+    """The RH of every posterior sample as the instrument's product would measure it.
+
+    Parameters
+    ----------
+    problem : InversionProblem
+    x : array (n, ndim)
+        Posterior samples (physical units).
+    drawn : dict of arrays (n,)
+        The marginalised parameters' draws (e.g. the gain).
+
+    Returns
+    -------
+    dict of name → array (n,) (m)
+        :data:`PRODUCT_RH`: each sample's expected recorded waveform b + a·W measured in
+        the product's RH convention between the shot's signal end and start
+        (:func:`.product_metrics.product_relative_heights`); NaN where a sample has no
+        finite posterior.
+    """
+    post = problem.log_posterior
+    settings = problem.settings.processing or processing_settings(problem.instrument.name)
+    levels = list(PRODUCT_RH.values())
+    heights = np.full((x.shape[0], len(levels)), np.nan)
+    for first in range(0, x.shape[0], _CHUNK):
+        rows = slice(first, first + _CHUNK)
+        terms = post.evaluate(x[rows], keep_signal=True)
+        good = np.flatnonzero(np.isfinite(terms.log_posterior))
+        if not good.size:
+            continue
+        values = problem.space.values(x[rows][good])
+        values.update({name: draws[rows][good] for name, draws in drawn.items()})
+        mean = model_moments(
+            terms.signal[good], values["gain"], values["baseline"], values["noise_sigma"]
+        )[0]
+        heights[first + good] = product_relative_heights(
+            mean, problem.window.axis, values["ground_elevation"], values["baseline"],
+            problem.analysis, settings, levels,
+        )  # fmt: skip
+    return {name: heights[:, i] for i, name in enumerate(PRODUCT_RH)}
 
 
 def replicate_observation(like, signal, values, rng) -> np.ndarray:
@@ -191,6 +242,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     derived = {name: blobs[:, i] for i, name in enumerate(BLOB_NAMES)}
     derived[FOOTPRINT_TOP] = footprint_top_height(problem, x, derived["density"], rng)
     drawn = post.draw_marginalised(x, rng)  # e.g. the gain, from p(gain | θ, y)
+    derived.update(product_heights(problem, x, drawn))
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
     terms = post.evaluate(x[pick], keep_signal=True)
     good = np.isfinite(terms.log_posterior)
@@ -220,7 +272,12 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     return InversionResult(
         shot_id=problem.observation.shot_id,
         parameter_names=(*space.names, *drawn),
-        units={**{p.name: p.units for p in space.parameters}, **BLOB_UNITS, FOOTPRINT_TOP: "m"},
+        units={
+            **{p.name: p.units for p in space.parameters},
+            **BLOB_UNITS,
+            FOOTPRINT_TOP: "m",
+            **dict.fromkeys(PRODUCT_RH, "m"),
+        },
         samples=np.column_stack([x, *drawn.values()]),
         log_prob=log_prob,
         derived=derived,
