@@ -40,6 +40,8 @@ def test_replicated_observations_carry_the_likelihoods_variance():
     np.testing.assert_allclose(draws.mean(axis=0), mean, atol=0.05)
     expected_sd = np.sqrt(4.0 + np.diag(covariance))  # σn² + the discrepancy's diagonal
     np.testing.assert_allclose(draws.std(axis=0), expected_sd, rtol=0.02)
+    # the discrepancy is correlated between bins as simulated, not drawn bin by bin
+    np.testing.assert_allclose(np.cov(draws.T), 4.0 * np.eye(bins) + covariance, atol=0.1)
     # a discrepancy proportional to the model: (η a W)²
     per_row, _, _ = replicate_observation(_likelihood(bins, eta=0.2), signal, values, rng)
     np.testing.assert_allclose(

@@ -116,9 +116,10 @@ def replicate_observation(like, signal, values, rng) -> np.ndarray:
     -------
     draws : array (n, bins) (DN)
         The model mean b + a·W plus noise of the likelihood's per-bin variance (noise,
-        shot noise and the model discrepancy; the read noise correlated from bin to bin
-        where the likelihood whitens it, the rest white), set to the floor or the
-        digitiser maximum where the product would have set it. Quantiles over the rows
+        shot noise and the model discrepancy), correlated from bin to bin as the
+        likelihood takes it (the read noise where it is whitened, a discrepancy
+        covariance as simulated; the rest white), set to the floor or the digitiser
+        maximum where the product would have set it. Quantiles over the rows
         are the posterior predictive bands.
     mean, variance : array (n, bins)
         The predictive mean (DN) and per-bin variance (DN²) they were drawn from.
@@ -133,15 +134,38 @@ def replicate_observation(like, signal, values, rng) -> np.ndarray:
         signal, values["gain"], values["baseline"], values["noise_sigma"], like.shot_factor, extra
     )
     noise = np.asarray(values["noise_sigma"], float)[:, None] * np.ones_like(mean)
+    correlated = np.zeros(mean.shape[1])  # the variance drawn with its correlations
+    draws = mean.copy()
     whitening = getattr(like, "whitening", None)  # None: white read noise
-    if whitening is None:
-        draws = mean + np.sqrt(variance) * rng.standard_normal(mean.shape)
-    else:  # the read noise correlated as the likelihood takes it, the rest white
+    if whitening is not None:  # the read noise correlated as the likelihood takes it
         root = np.linalg.cholesky(whitening.covariance(mean.shape[1]))
-        rest = np.sqrt(np.clip(variance - noise**2, 0.0, None))
-        draws = mean + noise * (rng.standard_normal(mean.shape) @ root.T)
-        draws += rest * rng.standard_normal(mean.shape)
+        draws += noise * (rng.standard_normal(mean.shape) @ root.T)
+        correlated = correlated + noise**2
+    if like.fixed_discrepancy is not None and like.fixed_discrepancy.ndim == 2:
+        root = covariance_root(like.fixed_discrepancy)  # bin to bin, as simulated
+        draws += rng.standard_normal((mean.shape[0], root.shape[1])) @ root.T
+        correlated = correlated + np.diag(like.fixed_discrepancy)
+    rest = np.clip(variance - correlated, 0.0, None)  # white: the remaining variance
+    draws += np.sqrt(rest) * rng.standard_normal(mean.shape)
     return _recorded(draws, like.data), mean, variance
+
+
+def covariance_root(covariance) -> np.ndarray:
+    """R with R·Rᵀ = ``covariance`` (symmetric, positive semi-definite; tiny negative
+    eigenvalues of rounding taken as 0).
+
+    Parameters
+    ----------
+    covariance : array (bins, bins)
+
+    Returns
+    -------
+    array (bins, k)
+        The eigenvectors of the positive eigenvalues, each scaled by its square root.
+    """
+    values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
+    keep = values > 0.0
+    return vectors[:, keep] * np.sqrt(values[keep])
 
 
 def _recorded(draws, data) -> np.ndarray:
