@@ -38,6 +38,7 @@ SOURCES = {
     "scaling": "scaling/scaling.json",
     "real-products": "real_products{tag}/summary.json",
     "real-inversion": "real_inversion{tag}/summary.json",
+    "real-inversion-shared": "real_inversion{tag}/summary.json",
 }
 
 

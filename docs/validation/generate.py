@@ -410,9 +410,15 @@ PAGES = {
             ),
             (
                 "real-inversion",
-                "Posteriors against the products",
+                "Posteriors against the products: the shipped examples",
                 render_real_inversion,
                 "python studies/real_inversion.py --data examples --workers 2",
+            ),
+            (
+                "real-inversion-shared",
+                "Posteriors against the products: the development files",
+                render_real_inversion,
+                "python studies/real_inversion.py --max-shots 12 --workers 2",
             ),
         ],
     ),
