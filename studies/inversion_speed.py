@@ -9,11 +9,11 @@ and the cost of one log-posterior row (of the pilot posterior, with the per-bin
 discrepancy, under ``realisations``). Target: ≤ 10 s per footprint with ~10 free
 parameters.
 
-    python studies/inversion_speed.py [--n 3] [--repeats 1] [--max-steps 20000]
+    python studies/inversion_speed.py [--n 3] [--repeats 1] [--max-steps 10000]
                                       [--config default 10-free]
                                       [--sample-gain] [--unbounded logit|probit] [--tag _NAME]
                                       [--discrepancy-model observed|realisations]
-                                      [--walkers 64] [--moves de=0.5 ensemble-t=0.5]
+                                      [--walkers 128] [--moves de=0.5 ensemble-t=0.5]
 
 Each shot is inverted ``--repeats`` times with other seeds: the time to convergence
 follows the largest τ, whose estimate varies from run to run of one posterior.
@@ -189,7 +189,7 @@ def main():
     parser.add_argument(
         "--repeats", type=int, default=1, help="inversions of each shot, with other seeds"
     )
-    parser.add_argument("--max-steps", type=int, default=20000)
+    parser.add_argument("--max-steps", type=int, default=SamplerSettings().max_steps)
     parser.add_argument("--seed", type=int, default=5)
     parser.add_argument("--config", nargs="+", default=list(CONFIGURATIONS), choices=CONFIGURATIONS)
     parser.add_argument(

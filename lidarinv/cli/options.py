@@ -41,13 +41,13 @@ def add_inversion_options(parser) -> None:
         help="instrument preset for the pulse and footprint (default: the one the file names)",
     )
     parser.add_argument(
-        "--max-steps", type=positive_int, metavar="N", help="cap on sampler steps (default 20000)"
+        "--max-steps", type=positive_int, metavar="N", help="cap on sampler steps (default 10000)"
     )
     parser.add_argument(
         "--walkers",
         type=walker_count,
         metavar="N",
-        help="walkers of the ensemble (even; at least 2 × free parameters + 2; default 64)",
+        help="walkers of the ensemble (even; at least 2 × free parameters + 2; default 128)",
     )
     parser.add_argument(
         "--cohorts",
