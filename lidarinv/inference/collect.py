@@ -54,24 +54,28 @@ def footprint_top_height(problem: InversionProblem, x, density_per_ha, rng) -> n
 
 #: Derived quantities: the RH of :data:`.model.waveform.RH_LEVELS` in the product's convention.
 PRODUCT_RH = {f"{name}_product": level for name, level in RH_LEVELS.items()}
-#: Posterior samples evaluated at once for :func:`product_heights`.
+#: Posterior samples evaluated at once for :func:`sample_draws`.
 _CHUNK = 1024
 
 
-def product_heights(problem: InversionProblem, x, drawn) -> dict:
-    """The RH of every posterior sample as the instrument's product would measure it.
+def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
+    """The marginalised parameters' draws and the RH in the product's convention of every
+    posterior sample, from one evaluation of the samples (in chunks).
 
     Parameters
     ----------
     problem : InversionProblem
     x : array (n, ndim)
         Posterior samples (physical units).
-    drawn : dict of arrays (n,)
-        The marginalised parameters' draws (e.g. the gain).
+    rng : numpy.random.Generator
+        For the marginalised parameters' draws.
 
     Returns
     -------
-    dict of name → array (n,) (m)
+    drawn : dict of name → array (n,)
+        :meth:`.posterior.LogPosterior.draw_marginalised` (e.g. the gain from
+        p(a | θ, y)); empty where nothing is marginalised.
+    heights : dict of name → array (n,) (m)
         :data:`PRODUCT_RH`: each sample's expected recorded waveform b + a·W measured in
         the product's RH convention between the shot's signal end and start
         (:func:`.product_metrics.product_relative_heights`); NaN where a sample has no
@@ -81,14 +85,16 @@ def product_heights(problem: InversionProblem, x, drawn) -> dict:
     settings = problem.settings.processing or processing_settings(problem.instrument.name)
     levels = list(PRODUCT_RH.values())
     heights = np.full((x.shape[0], len(levels)), np.nan)
+    parts = []
     for first in range(0, x.shape[0], _CHUNK):
         rows = slice(first, first + _CHUNK)
         terms = post.evaluate(x[rows], keep_signal=True)
+        parts.append(post.draw_marginalised(x[rows], rng, terms))
         good = np.flatnonzero(np.isfinite(terms.log_posterior))
         if not good.size:
             continue
         values = problem.space.values(x[rows][good])
-        values.update({name: draws[rows][good] for name, draws in drawn.items()})
+        values.update({name: draws[good] for name, draws in parts[-1].items()})
         mean = model_moments(
             terms.signal[good], values["gain"], values["baseline"], values["noise_sigma"]
         )[0]
@@ -96,7 +102,8 @@ def product_heights(problem: InversionProblem, x, drawn) -> dict:
             mean, problem.window.axis, values["ground_elevation"], values["baseline"],
             problem.analysis, settings, levels,
         )  # fmt: skip
-    return {name: heights[:, i] for i, name in enumerate(PRODUCT_RH)}
+    drawn = {name: np.concatenate([part[name] for part in parts]) for name in parts[0]}
+    return drawn, {name: heights[:, i] for i, name in enumerate(PRODUCT_RH)}
 
 
 def replicate_observation(like, signal, values, rng) -> np.ndarray:
@@ -265,8 +272,8 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     blobs = _flat(run.blobs, run)
     derived = {name: blobs[:, i] for i, name in enumerate(BLOB_NAMES)}
     derived[FOOTPRINT_TOP] = footprint_top_height(problem, x, derived["density"], rng)
-    drawn = post.draw_marginalised(x, rng)  # e.g. the gain, from p(gain | θ, y)
-    derived.update(product_heights(problem, x, drawn))
+    drawn, heights = sample_draws(problem, x, rng)  # e.g. the gain, from p(gain | θ, y)
+    derived.update(heights)
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
     terms = post.evaluate(x[pick], keep_signal=True)
     good = np.isfinite(terms.log_posterior)

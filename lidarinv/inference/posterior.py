@@ -188,7 +188,7 @@ class LogPosterior:
         gain_fit = None if self.likelihood.gain_marginal is None else np.full((n, 4), np.nan)
         return Evaluation(log_prior, minus_inf, minus_inf.copy(), blobs, signal, gain_fit)
 
-    def draw_marginalised(self, x, rng) -> dict:
+    def draw_marginalised(self, x, rng, terms=None) -> dict:
         """Posterior draws of the marginalised parameters, one per posterior sample.
 
         Parameters
@@ -196,6 +196,8 @@ class LogPosterior:
         x : array (n, ndim)
             Posterior samples in physical units.
         rng : numpy.random.Generator
+        terms : Evaluation, optional
+            :meth:`evaluate` of ``x``, where the caller has it already.
 
         Returns
         -------
@@ -205,7 +207,8 @@ class LogPosterior:
         """
         if self.likelihood.gain_marginal is None:
             return {}
-        return {"gain": self.likelihood.draw_gain(self.evaluate(x).gain_fit, rng)}
+        terms = self.evaluate(x) if terms is None else terms
+        return {"gain": self.likelihood.draw_gain(terms.gain_fit, rng)}
 
     def log_prob(self, x) -> np.ndarray:
         """Log-posterior density of physical rows.
