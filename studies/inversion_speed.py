@@ -9,7 +9,7 @@ and the cost of one log-posterior row (of the pilot posterior, with the per-bin
 discrepancy, under ``realisations``). Target: ≤ 10 s per footprint with ~10 free
 parameters.
 
-    python studies/inversion_speed.py [--n 3] [--repeats 1] [--max-steps 10000]
+    python studies/inversion_speed.py [--n 3] [--repeats 1] [--max-steps 20000]
                                       [--config default 10-free]
                                       [--sample-gain] [--unbounded logit|probit] [--tag _NAME]
                                       [--discrepancy-model observed|realisations]

@@ -11,7 +11,7 @@ and ``predictive_*.png`` (typical, worst and multi-layer shots).
 
     python studies/real_inversion.py [--data ../shared/data/real | examples]
                                      [--instrument gedi lvis] [--max-shots N]
-                                     [--max-steps 10000] [--workers 1] [--seed 1]
+                                     [--max-steps 20000] [--workers 1] [--seed 1]
                                      [--priors FILE] [--cohorts 1|2|auto] [--tag _NAME]
 """
 

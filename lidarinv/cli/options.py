@@ -41,7 +41,7 @@ def add_inversion_options(parser) -> None:
         help="instrument preset for the pulse and footprint (default: the one the file names)",
     )
     parser.add_argument(
-        "--max-steps", type=positive_int, metavar="N", help="cap on sampler steps (default 10000)"
+        "--max-steps", type=positive_int, metavar="N", help="cap on sampler steps (default 20000)"
     )
     parser.add_argument(
         "--walkers",

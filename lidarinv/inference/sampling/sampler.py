@@ -32,8 +32,9 @@ class SamplerSettings:
         sets it: on real shots 128 walkers converge in about half the steps of 64, at
         1.3–1.5 times the cost a step (``studies/inversion_speed.py --walkers``).
     max_steps : int
-        Cap on steps; a run that hits it unconverged is flagged. 10 000 steps of 128
-        walkers are as many evaluations as 20 000 of 64.
+        Cap on steps; a run that hits it unconverged is flagged. Hard shots (tall
+        two-storey LVIS forests) need τ of a few hundred steps whatever the walkers, so
+        the cap stays at 20 000 steps.
     check_every : int
         Steps between convergence checks, at least (with τ of a few tens, 50 τ is soon
         reached, and sparser checks overshoot it).
@@ -90,7 +91,7 @@ class SamplerSettings:
     """
 
     n_walkers: int = 128
-    max_steps: int = 10_000
+    max_steps: int = 20_000
     check_every: int = 100
     check_growth: float = 0.1
     tau_multiple: float = 50.0
