@@ -4,8 +4,8 @@ The model's RH (:func:`.model.waveform.relative_heights`) spreads the energy of 
 noise-free model waveform over the whole window. The products measure RH otherwise:
 GEDI L2A on the smoothed, noise-subtracted waveform, LVIS L2 on the recorded counts with
 the noise level included, both between the shot's signal end and start
-(:mod:`lidarinv.observe.processing`). On a tall LVIS canopy the noise level spread over a
-30 m extent lifts RH98 by 1–3 m, so a posterior RH98 in the model's convention and the
+(:mod:`lidarinv.observe.processing`). On a tall LVIS canopy the noise level spread over
+the extent lifts RH98 by metres, so a posterior RH98 in the model's convention and the
 product's RH98 measure different things. :func:`product_relative_heights` applies the
 product's convention to each posterior sample's expected recorded waveform, so that the
 comparison is like with like.

@@ -29,12 +29,10 @@ class SamplerSettings:
         Walkers (raised to 2·ndim + 2 if smaller). A posterior call costs little more
         for 64 rows than for 32 (its cost is mostly per call), and τ in steps falls as
         walkers are added until the ``chain-t`` move, whose τ does not depend on them,
-        sets it: on real shots 128 walkers converge in about half the steps of 64, at
-        1.3–1.5 times the cost a step (``studies/inversion_speed.py --walkers``).
+        sets it (``studies/inversion_speed.py --walkers`` compares counts).
     max_steps : int
         Cap on steps; a run that hits it unconverged is flagged. Hard shots (tall
-        two-storey LVIS forests) need τ of a few hundred steps whatever the walkers, so
-        the cap stays at 20 000 steps.
+        two-storey forests) keep a τ of hundreds of steps however many walkers there are.
     check_every : int
         Steps between convergence checks, at least (with τ of a few tens, 50 τ is soon
         reached, and sparser checks overshoot it).
