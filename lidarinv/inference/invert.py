@@ -136,8 +136,9 @@ def prepare_problem(
             lambda u: pilot(u)[:, 0], estimate, problem.space,
             pulse_width_m(problem.instrument.pulse),
         )  # fmt: skip
-        start = np.array([mode.u for mode, _ in kept]) if len(kept) > 1 else estimate.u
+        start = estimate.u
         if len(kept) > 1:
+            start = np.array([mode.u for mode, _ in kept])
             report["notes"].append(describe_competing(kept))
             report["competing_grounds"] = [float(elevation) for _, elevation in kept]
     return problem, start, report

@@ -50,10 +50,9 @@ class RealisationSettings:
         Side of the square plot each stand is realised on, in footprint diameters
         (1/e² diameters, 4σf); the footprint sits at its centre.
     accuracy : forward.engine.AccuracySettings
-        Accuracy of the explicit engine: its column grid at a 1 % L1 tolerance, about
-        two thirds of the default's cost. On a real GEDI shot its residuals differ from the
-        default's by 3 % (in norm), where the per-crown quadrature of 2 rings × 4 angles
-        used before differed by 9 % at five times the cost.
+        Accuracy of the explicit engine: its column grid at a 1 % L1 tolerance, cheaper
+        than the default and closer to it than a coarse per-crown quadrature (the
+        CHANGELOG gives the comparison).
     instrument_floor : float
         η₀, the per-bin discrepancy (a fraction of the shot's own signal, as the
         ``observed`` model) added to the diagonal of the simulated covariance: the error
