@@ -12,6 +12,7 @@ import pytest
 
 from lidarinv.inference import InversionSettings, invert_shot
 from lidarinv.io import example_file, iter_observations
+from lidarinv.observe import processing_settings
 from lidarinv.observe.analyse import analyse
 
 SHORT = InversionSettings(discrepancy_model="observed")
@@ -46,3 +47,9 @@ def test_a_two_layer_real_shot_is_fitted_with_two_cohorts_when_they_are_availabl
     # in LVIS L2's convention (recorded counts) the posterior RH98 is the shot's own
     product_rh98 = np.median(result.column("rh98_product"))
     assert abs(product_rh98 - analysis.rh[98]) < 1.0
+    # the footprint's own waveform (the fitted one and the discrepancy the data show) has
+    # the RH98 of the shot's waveform in the model's convention (energy above the noise)
+    convention = replace(processing_settings("lvis"), rh_energy="above-noise", rh_smoothed=False)
+    own = analyse(obs, convention).rh[98]
+    footprint = np.percentile(result.column("rh98_footprint"), [5, 50, 95])
+    assert footprint[0] - 0.5 <= own <= footprint[2] + 0.5

@@ -20,6 +20,12 @@ HEADLINE = (
         "canopy height",
         "tallest stem within the footprint's 1/e² radius (compare with RH98)",
     ),
+    (
+        "rh98_footprint",
+        "RH98 of the footprint",
+        "of its own waveform, the fitted one and the discrepancy the data show (compare "
+        "with a product's RH98)",
+    ),
     ("rh98", "RH98 of the fitted waveform", "height above the ground of 98 % of its energy"),
     (
         "gap_cover",
@@ -80,8 +86,8 @@ def headline(result) -> str:
     summary = result.summary()
     lines = [f"shot {result.shot_id}: the footprint (median, 90 % interval)"]
     for name, label, meaning in HEADLINE:
-        if name not in summary:
-            continue
+        if name not in summary or not np.isfinite(summary[name]["median"]):
+            continue  # e.g. no footprint RH where the likelihood cannot condition on y
         row = summary[name]
         units = "" if row["units"] in ("", "1") else f" {row['units']}"
         lines.append(

@@ -5,9 +5,14 @@ import numpy as np
 
 from lidarinv.observe import processing_settings
 
+from .likelihood.conditional import (
+    conditioning_obstacle,
+    discrepancy_given_data,
+    from_basis_matrix,
+)
 from .likelihood.gaussian import model_moments
 from .model.tallest_stem import disc_area
-from .model.waveform import RH_LEVELS
+from .model.waveform import RH_LEVELS, relative_heights
 from .posterior import BLOB_NAMES, BLOB_UNITS
 from .problem import InversionProblem
 from .product_metrics import product_relative_heights
@@ -54,6 +59,9 @@ def footprint_top_height(problem: InversionProblem, x, density_per_ha, rng) -> n
 
 #: Derived quantities: the RH of :data:`.model.waveform.RH_LEVELS` in the product's convention.
 PRODUCT_RH = {f"{name}_product": level for name, level in RH_LEVELS.items()}
+#: Derived quantities: the RH of the footprint's own noise-free waveform a·W + d, d the
+#: discrepancy drawn given the data (:mod:`.likelihood.conditional`).
+FOOTPRINT_RH = {f"{name}_footprint": level for name, level in RH_LEVELS.items()}
 #: Posterior samples evaluated at once for :func:`sample_draws`.
 _CHUNK = 1024
 
@@ -78,13 +86,19 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
     heights : dict of name → array (n,) (m)
         :data:`PRODUCT_RH`: each sample's expected recorded waveform b + a·W measured in
         the product's RH convention between the shot's signal end and start
-        (:func:`.product_metrics.product_relative_heights`); NaN where a sample has no
-        finite posterior.
+        (:func:`.product_metrics.product_relative_heights`); :data:`FOOTPRINT_RH`: the
+        model's RH of the footprint's noise-free waveform a·W + d, d drawn from
+        p(d | θ, y) (:func:`.likelihood.conditional.discrepancy_given_data`), NaN where
+        the likelihood does not allow it; NaN where a sample has no finite posterior.
     """
     post = problem.log_posterior
+    like = post.likelihood
     settings = problem.settings.processing or processing_settings(problem.instrument.name)
     levels = list(PRODUCT_RH.values())
     heights = np.full((x.shape[0], len(levels)), np.nan)
+    footprint = np.full((x.shape[0], len(FOOTPRINT_RH)), np.nan)
+    conditioned = conditioning_obstacle(like) is None
+    back = from_basis_matrix(like) if conditioned else None
     parts = []
     for first in range(0, x.shape[0], _CHUNK):
         rows = slice(first, first + _CHUNK)
@@ -102,8 +116,16 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
             mean, problem.window.axis, values["ground_elevation"], values["baseline"],
             problem.analysis, settings, levels,
         )  # fmt: skip
+        if conditioned:
+            own = discrepancy_given_data(like, terms.signal[good], values, rng, back)
+            own += values["gain"][:, None] * terms.signal[good]
+            footprint[first + good] = relative_heights(
+                own, problem.window.axis, values["ground_elevation"], list(FOOTPRINT_RH.values())
+            )
     drawn = {name: np.concatenate([part[name] for part in parts]) for name in parts[0]}
-    return drawn, {name: heights[:, i] for i, name in enumerate(PRODUCT_RH)}
+    heights = {name: heights[:, i] for i, name in enumerate(PRODUCT_RH)}
+    heights.update({name: footprint[:, i] for i, name in enumerate(FOOTPRINT_RH)})
+    return drawn, heights
 
 
 def replicate_observation(like, signal, values, rng) -> np.ndarray:
@@ -308,6 +330,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             **BLOB_UNITS,
             FOOTPRINT_TOP: "m",
             **dict.fromkeys(PRODUCT_RH, "m"),
+            **dict.fromkeys(FOOTPRINT_RH, "m"),
         },
         samples=np.column_stack([x, *drawn.values()]),
         log_prob=log_prob,
