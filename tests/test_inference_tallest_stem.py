@@ -221,3 +221,62 @@ def test_a_priors_file_table_turns_the_latent_on(tmp_path, shot):
     )
     with pytest.raises(ValueError, match="uniform range"):
         build_problem(shot, InversionSettings.from_priors_file(path))
+
+
+def test_two_storeys_conditioned_on_the_tallest_stem(rng):
+    """Over two storeys the stem's law is that of the tallest of the mixture: its density
+    and the chance of no stem integrate to exp(−λA·S(h)), S the mixture's survival; the
+    stem stops both storeys, and an emergent upper storey (few stems) makes a tall stem
+    likely only as its share of the stems grows."""
+    from lidarinv.inference.model.two_cohort import TwoCohortMapping
+
+    two = TwoCohortMapping(default_template(), footprint_sigma_m=SIGMA_F)
+    assert two.conditioned and {"height_cap", "apex_density"} <= set(two.model_free)
+    heights = np.linspace(0.5, 34.0, 20001)
+    rows = {
+        **_values(heights.size, top_height=34.0, height_sd=2.0),
+        "cohort2_fraction": np.full(heights.size, 0.95),  # 5 % emergents over a canopy
+        "cohort2_top_ratio": np.full(heights.size, 0.6),
+        "cohort2_sd_ratio": np.full(heights.size, 0.1),
+        TALLEST_STEM: heights,
+        TALLEST_STEM_POSITION: np.full(heights.size, 0.4),
+    }
+    vectors, derived = two.model_vectors(rows)
+    column = dict(zip(two.model_free, vectors.T))
+    stems = derived["density"][0] * 1e-4 * two.tallest_stem_area
+    lowest = two.lowest_height({k: v[:1] for k, v in rows.items()})[0]
+    survival = 0.0
+    for share, mean, sd in two.cohort_heights({k: v[:1] for k, v in rows.items()}):
+        args = two.family.arguments(mean, sd, two.truncation)
+        survival = survival + share * two.family.fast("sf", heights, *args)
+    density = np.exp(derived["tallest_stem_log_density"])
+    inside = heights >= lowest
+    steps = 0.5 * (density[1:] + density[:-1]) * np.diff(heights) * inside[1:] * inside[:-1]
+    cdf = np.exp(-stems) + np.concatenate([[0.0], np.cumsum(steps)])
+    np.testing.assert_allclose(cdf[inside], np.exp(-stems * survival[inside]), atol=2e-4)
+    np.testing.assert_array_equal(column["height_cap"][inside], heights[inside])
+    # the share of emergents sets how likely a tall stem is: fewer, less likely
+    few = {**rows, "cohort2_fraction": np.full(heights.size, 0.99)}
+    _, fewer = two.model_vectors(few)
+    tall = heights > 30.0
+    law, law_fewer = derived["tallest_stem_log_density"], fewer["tallest_stem_log_density"]
+    assert np.all(law_fewer[tall] < law[tall])
+
+
+def test_the_stem_stops_the_lower_storey_too(shot):
+    """A stem below the lower storey's top: conditioned on it, the two-storey model puts
+    no canopy above it, in either storey."""
+    problem = build_problem(shot, InversionSettings(cohorts=2, tallest_stem=True))
+    post, space = problem.log_posterior, problem.space
+    assert post.mapping.conditioned and TALLEST_STEM in space.names
+    x = space.sample_prior(np.random.default_rng(3), 1)
+    for name, value in {"top_height": 30.0, "height_sd": 1.0, "cohort2_fraction": 0.9,
+                        "cohort2_top_ratio": 0.8, "cohort2_sd_ratio": 0.2, "cover": 0.8,
+                        "ground_elevation": 0.0, TALLEST_STEM: 15.0}.items():  # fmt: skip
+        x[:, space.names.index(name)] = value
+    values = space.values(x)
+    rows = post.model.evaluate(values)
+    reach = 6.0 * problem.instrument.pulse.sigma_m + 1.0
+    above = problem.window.axis > 15.0 + reach
+    assert rows.valid[0] and np.any(above)
+    assert np.max(np.abs(rows.signal[0, above])) < 1e-9 * np.max(rows.signal[0])

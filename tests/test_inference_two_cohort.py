@@ -112,10 +112,8 @@ def test_settings_choose_the_cohorts_and_refuse_what_cannot_be_built(tmp_path):
     assert set(COHORT2) <= set(space.names)
     with pytest.raises(ValueError, match="cohorts"):
         InversionSettings(cohorts=3)
-    with pytest.raises(ValueError, match="tallest stem"):
-        InversionSettings(cohorts=2, tallest_stem=True)
     assert InversionSettings().cohorts == "auto"
-    assert InversionSettings(tallest_stem=True).cohorts == 1  # the latent has one cohort
+    assert InversionSettings(tallest_stem=True).cohorts == "auto"  # either model has it
     priors = tmp_path / "priors.toml"
     priors.write_text('[cohort2_top_ratio]\nkind = "uniform"\nlower = 0.2\nupper = 0.6\n')
     assert InversionSettings.from_priors_file(priors).cohorts == 2

@@ -53,8 +53,8 @@ understory multiplies E[P] by its own transmission; the ground pulse is ρg·E[P
 pulse(z_j − g), for a Gaussian or a measured pulse alike (:mod:`forward.expected.ground`).
 Slopes are not modelled here.
 
-Conditioning on the tallest tree. ``height_cap`` H stops cohort 1 at H: its trees below
-keep their intensity, λ·f(h) for h ≤ H, so the cohort holds λ·F(H) stems on a grid ending
+Conditioning on the tallest tree. ``height_cap`` H stops each cohort at H: its trees below
+keep their intensity, λ·f(h) for h ≤ H, so a cohort holds λ·F(H) stems on a grid ending
 at H. ``apex_density`` adds that many stems per hectare, in cohort 1's shape mix, all of
 height H: their depth is the closed form Σ_j w_j·λ_H·π·Rc(H)²·(1 − e^{−κu_j·c_j(z)}),
 c_j(z) the chord of node j above z (:mod:`forward.expected.cohorts`). Together they give

@@ -2,7 +2,7 @@
 
 Cohort 1 follows the vector's height distribution and crown mix; cohort 2, where the
 model has one, its own distribution and the template's mix. Conditioning on the tallest
-tree (:data:`.vectors.CONDITIONING_FIELDS`) stops cohort 1 at
+tree (:data:`.vectors.CONDITIONING_FIELDS`) stops every cohort at
 ``height_cap`` H, its trees below keeping their intensity λ·f(h) (so λ·F(H) stems on a
 grid ending at H), and adds ``apex_density`` stems per hectare in cohort 1's mix, all of
 height H: a point mass, whose optical depth is a closed form
@@ -70,8 +70,8 @@ def cohorts(v, family, truncation, tail, mix_index, cohort2_fractions, two_cohor
     Returns
     -------
     list of Cohort
-        Cohort 1 (stopped at ``height_cap``), cohort 2 if the model has one, and the apex
-        trees at the cap where a row has any.
+        Cohort 1 and cohort 2 if the model has one (each stopped at ``height_cap``), and
+        the apex trees at the cap where a row has any.
     """
     density, cap = v[:, _I["density"]], v[:, _I["height_cap"]]
     capped = np.isfinite(cap)
@@ -82,7 +82,7 @@ def cohorts(v, family, truncation, tail, mix_index, cohort2_fractions, two_cohor
         lo = family.fast("ppf", tail, shape_args, loc, scale)
         hi = np.maximum(family.fast("isf", tail, shape_args, loc, scale), lo + 1e-6)
         stems = density * weight
-        if cohort == 0 and capped.any():
+        if capped.any():  # the tallest stem stops every cohort
             below = 1.0 - family.fast("sf", np.where(capped, cap, hi), shape_args, loc, scale)
             stems = np.where(capped, stems * np.clip(below, 0.0, 1.0), stems)
             hi = np.where(capped, np.maximum(np.minimum(hi, cap), lo + 1e-6), hi)

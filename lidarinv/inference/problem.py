@@ -25,6 +25,9 @@ from .posterior import LogPosterior
 from .settings import AUTO, InversionSettings
 from .shot import Shot
 
+#: The stand mapping of each count of height cohorts.
+MAPPINGS = {1: StandMapping, 2: TwoCohortMapping}
+
 
 @dataclass
 class InversionProblem:
@@ -176,13 +179,10 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
         instrument.extinction_per_favd, backend, settings.cohorts,
     )  # fmt: skip
     template = default_template(settings.shape_pair)
-    if settings.cohorts == 2:
-        mapping = TwoCohortMapping(template, settings.shape_pair, backend=backend)
-    else:
-        sigma = instrument.footprint_sigma_m if settings.tallest_stem else None
-        mapping = StandMapping(
-            template, settings.shape_pair, footprint_sigma_m=sigma, backend=backend
-        )
+    sigma = instrument.footprint_sigma_m if settings.tallest_stem else None
+    mapping = MAPPINGS[settings.cohorts](
+        template, settings.shape_pair, footprint_sigma_m=sigma, backend=backend
+    )
     expected = ExpectedWaveformModel(
         instrument, shot.window.axis, mapping.template, mapping.model_free, settings.model
     )

@@ -135,8 +135,8 @@ class InversionSettings:
         How the ``realisations`` covariance is simulated.
     tallest_stem : bool
         Condition the footprint on its tallest stem (within the 1/e² disc): latent
-        parameters for its height, whose law the stand gives, and its position
-        (:class:`.model.stand.StandMapping`): one
+        parameters for its height, whose law the stand gives (of one storey or both),
+        and its position (:class:`.model.stand.StandMapping`): one
         footprint rarely holds a stem in the upper tail of the stand's heights, and a
         Gaussian discrepancy, symmetric, cannot say so. The ``realisations`` covariance
         then holds what remains once each stand's own tallest stem is accounted for. A
@@ -146,9 +146,8 @@ class InversionSettings:
         Height cohorts of the stand: 1, one truncated-normal height family; 2, a lower
         storey beside it (:mod:`.model.two_cohort`), for multi-layer canopies and
         emergents; ``"auto"`` (the default), the one with the lower BIC at its MAP
-        (:func:`.invert.choose_cohorts`; one MAP search more), and 1 where the stand is
-        conditioned on its tallest stem. A priors file turns 2 on with a table for a
-        parameter of :data:`.model.two_cohort.COHORT2`.
+        (:func:`.invert.choose_cohorts`; one MAP search more). A priors file turns 2 on
+        with a table for a parameter of :data:`.model.two_cohort.COHORT2`.
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
         cover, PAI, heights and crown length (see :class:`.posterior.LogPosterior`); None
@@ -200,10 +199,6 @@ class InversionSettings:
     def __post_init__(self):
         if self.cohorts not in COHORT_COUNTS:
             raise ValueError(f"cohorts must be one of {COHORT_COUNTS}, got {self.cohorts!r}")
-        if self.cohorts == AUTO and self.tallest_stem:  # only one cohort has that latent
-            object.__setattr__(self, "cohorts", 1)
-        if self.cohorts != 1 and self.tallest_stem:
-            raise ValueError("a two-cohort stand cannot be conditioned on its tallest stem")
 
     @classmethod
     def from_priors_file(cls, path, **changes) -> "InversionSettings":

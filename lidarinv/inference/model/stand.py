@@ -105,7 +105,7 @@ class StandMapping:
         R = :data:`.tallest_stem.TALLEST_STEM_RADIUS_SIGMAS`·σf (area A): the parameters
         then include the latents :data:`.tallest_stem.TALLEST_STEM_LATENTS`: the stem's
         height H (m), whose law given the stand is that of the tallest of a Poisson(λA)
-        draw of stems (:func:`.tallest_stem.log_density`), and V, uniform a priori: the
+        draw of stems (:func:`.tallest_stem.mixture_log_density`), and V, uniform a priori: the
         stem stands at r² = V·R² from the centre. Cohort 1 stops at H (``height_cap``) and
         the stem itself is an apex cohort whose density is its footprint weight
         (``apex_density``, :func:`.tallest_stem.stem_density_per_ha`). Stems outside the
@@ -260,14 +260,11 @@ class StandMapping:
             args, lowest = tallest_stem.arguments_and_lowest(
                 self.family, mean, v["height_sd"], self.truncation
             )
-            tallest = v[TALLEST_STEM]
-            some = tallest >= lowest
-            # no stem in the disc: no tree below the cap
-            fields["height_cap"] = np.where(some, tallest, 1e-6)
-            weight = tallest_stem.stem_density_per_ha(
-                v[TALLEST_STEM_POSITION], self.footprint_sigma_m
-            )
-            fields["apex_density"] = np.where(some, weight, 0.0)
+            stem = tallest_stem.condition(
+                self.family, [(1.0, args)], lowest, lam * self.tallest_stem_area,
+                v[TALLEST_STEM], v[TALLEST_STEM_POSITION], self.footprint_sigma_m,
+            )  # fmt: skip
+            fields.update(stem.pop("fields"))
         vectors = vectors_by_name(fields, self.model_free)
         derived = {
             "crown_area": area,  # m², not a blob: for the discrepancy model
@@ -278,11 +275,8 @@ class StandMapping:
             "crown_volume": volume * 1e4,
             "lai": v["pai"] + v["understory_lai"],
         }
-        if self.conditioned:  # m, 0 where the disc holds no stem
-            derived["tallest_stem"] = np.where(some, tallest, 0.0)
-            derived["tallest_stem_log_density"] = tallest_stem.log_density(
-                self.family, args, lowest, lam * self.tallest_stem_area, tallest
-            )
+        if self.conditioned:  # the stem's height (m, 0 where none) and log density
+            derived.update(stem)
         return vectors, derived
 
     def stand_fields(self, v, density_m2, height_mean, favd) -> dict:

@@ -15,7 +15,7 @@ from forward.poisson_stand import tallest_log_density, tallest_survival
 
 #: The latent parameter of a footprint conditioned on its tallest stem: that stem's height
 #: H (m), whose law given the stand is the Poisson order statistic
-#: (:func:`log_density`); H below the stand's lowest tree stands for a disc without a
+#: (:func:`mixture_log_density`); H below the stand's lowest tree stands for a disc without a
 #: stem.
 TALLEST_STEM = "tallest_stem_height"
 
@@ -97,16 +97,18 @@ def arguments_and_lowest(family, mean, sd, truncation):
     return args, family.fast("ppf", np.zeros_like(mean), *args)
 
 
-def log_density(family, args, lowest, stems, tallest) -> np.ndarray:
-    """Log density (1/m) of the tallest stem's height H on a disc of Poisson(N) stems.
+def mixture_log_density(family, laws, lowest, stems, tallest) -> np.ndarray:
+    """Log density (1/m) of the tallest stem's height H on a disc of Poisson(N) stems
+    whose heights follow a mixture of laws (one per cohort).
 
     Parameters
     ----------
     family : forward.stand_params.HeightFamily
-    args : tuple
-        The family's arguments per row (:func:`arguments_and_lowest`).
+    laws : list of (array, tuple)
+        Each cohort's share of the stems and its family arguments per row
+        (:func:`arguments_and_lowest`); the shares sum to 1.
     lowest : array (m)
-        The family's lowest tree per row.
+        The stand's lowest tree per row.
     stems : array
         N = λA, the expected stems on the disc.
     tallest : array (m)
@@ -115,18 +117,58 @@ def log_density(family, args, lowest, stems, tallest) -> np.ndarray:
     Returns
     -------
     array (1/m)
-        ln N·f(H) − N·S(H) on the family's support
-        (:func:`forward.poisson_stand.tallest_log_density`); the chance of no stem,
-        e^{−N}, spread over the :data:`NO_STEM_DEPTH_M` below ``lowest``; −inf elsewhere.
+        ln N·f(H) − N·S(H) (:func:`forward.poisson_stand.tallest_log_density`) with the
+        mixture's density f = Σ sₖ·fₖ and survival S = Σ sₖ·Sₖ (sₖ the shares) on its
+        support; the chance of no stem, e^{−N}, spread over the :data:`NO_STEM_DEPTH_M`
+        below ``lowest``; −inf elsewhere.
     """
     some = tallest >= lowest
     height = np.where(some, tallest, lowest)
+    pdf = sum(share * family.fast("pdf", height, *args) for share, args in laws)
+    survival = sum(share * family.fast("sf", height, *args) for share, args in laws)
     with np.errstate(divide="ignore"):
-        law = tallest_log_density(
-            stems, family.fast("pdf", height, *args), family.fast("sf", height, *args)
-        )
+        law = tallest_log_density(stems, pdf, survival)
     none = np.where(tallest >= lowest - NO_STEM_DEPTH_M, -np.log(NO_STEM_DEPTH_M), -np.inf)
     return np.where(some, law, none - stems)
+
+
+def condition(family, laws, lowest, stems, tallest, position, footprint_sigma_m) -> dict:
+    """A footprint conditioned on its tallest stem: the expected model's fields and the
+    stem's derived quantities.
+
+    Parameters
+    ----------
+    family : forward.stand_params.HeightFamily
+    laws : list of (array, tuple)
+        Each cohort's share of the stems and its family arguments per row.
+    lowest : array (m)
+        The stand's lowest tree per row.
+    stems : array
+        N = λA, the expected stems on the disc.
+    tallest : array (m)
+        H; below ``lowest`` for a disc without a stem.
+    position : array
+        V (:func:`stem_density_per_ha`).
+    footprint_sigma_m : float (m)
+
+    Returns
+    -------
+    dict
+        ``fields``: ``height_cap`` (every cohort stops at H; with no stem, at once) and
+        ``apex_density`` (the stem's footprint weight, stems/ha); ``tallest_stem``, H or 0
+        where the disc holds none (m); ``tallest_stem_log_density``
+        (:func:`mixture_log_density`, 1/m).
+    """
+    some = tallest >= lowest
+    weight = stem_density_per_ha(position, footprint_sigma_m)
+    return {
+        "fields": {
+            "height_cap": np.where(some, tallest, 1e-6),
+            "apex_density": np.where(some, weight, 0.0),
+        },
+        "tallest_stem": np.where(some, tallest, 0.0),
+        "tallest_stem_log_density": mixture_log_density(family, laws, lowest, stems, tallest),
+    }
 
 
 def draw_tallest(family, mean, sd, truncation, stems, uniform):

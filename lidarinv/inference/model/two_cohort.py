@@ -31,6 +31,7 @@ from forward.expected import vectors_by_name
 from . import tallest_stem
 from .priors import Uniform
 from .stand import DOMINANT_PER_HA, TOP_SDS, StandMapping
+from .tallest_stem import TALLEST_STEM, TALLEST_STEM_POSITION
 
 #: The lower storey's parameters: name → (units, description).
 COHORT2 = {
@@ -60,18 +61,23 @@ class TwoCohortMapping(StandMapping):
         As for :class:`.stand.StandMapping`; its crown-shape mix is cohort 2's.
     shape_pair : (str, str)
     profile_nodes : int
+    footprint_sigma_m : float (m) or None
+        If set, condition each footprint on its tallest stem within the disc, as
+        :class:`.stand.StandMapping` does; the stem's law is that of the tallest of a
+        Poisson draw from the mixture of the two storeys, and it stops both.
     backend : str
         The stand columns are computed with numpy (the mixture has no compiled kernel).
-
-    Notes
-    -----
-    The footprint cannot be conditioned on its tallest stem here.
     """
 
     def __init__(
-        self, template, shape_pair=("cone", "ellipsoid"), profile_nodes=48, backend="auto"
+        self,
+        template,
+        shape_pair=("cone", "ellipsoid"),
+        profile_nodes=48,
+        footprint_sigma_m=None,
+        backend="auto",
     ):
-        super().__init__(template, shape_pair, profile_nodes, None, backend)
+        super().__init__(template, shape_pair, profile_nodes, footprint_sigma_m, backend)
         self.backend = "numpy"
         self.model_free += ("cohort2_fraction", "cohort2_height_mean", "cohort2_height_sd")
         ratio = dict(zip(CROWN_SHAPES, template.favd_ratio))
@@ -188,6 +194,9 @@ class TwoCohortMapping(StandMapping):
         fields.update(
             {"cohort2_fraction": f2, "cohort2_height_mean": mean2, "cohort2_height_sd": sd2}
         )
+        if self.conditioned:
+            stem = self._tallest_stem(v, cohorts, lam)
+            fields.update(stem.pop("fields"))
         vectors = vectors_by_name(fields, self.model_free)
         derived = {
             "crown_area": area,
@@ -198,7 +207,20 @@ class TwoCohortMapping(StandMapping):
             "crown_volume": volume * 1e4,
             "lai": v["pai"] + v["understory_lai"],
         }
+        if self.conditioned:
+            derived.update(stem)
         return vectors, derived
+
+    def _tallest_stem(self, v, cohorts, lam) -> dict:
+        """:func:`.tallest_stem.condition` on the mixture of the two storeys."""
+        laws = [
+            (share, self.family.arguments(mean, sd, self.truncation))
+            for share, mean, sd, *_ in cohorts
+        ]
+        return tallest_stem.condition(
+            self.family, laws, self.lowest_height(v), lam * self.tallest_stem_area,
+            v[TALLEST_STEM], v[TALLEST_STEM_POSITION], self.footprint_sigma_m,
+        )  # fmt: skip
 
     def _per_cohort(self, v, method, *args):
         """Σ over cohorts of a single-cohort method, each on its own heights and stems."""
