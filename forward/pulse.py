@@ -9,6 +9,7 @@ and digitiser"). Variants are chosen through :data:`PULSE_TYPES`.
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.fft
 from scipy.special import ndtr, ndtri
 
 from .constants import FWHM_PER_SIGMA, ns_to_height
@@ -319,8 +320,10 @@ def broaden(samples, bin_height: float, sigma_m) -> np.ndarray:
     if not np.any(sigma > 0):
         return samples.copy()
     pad = int(np.ceil(5.0 * sigma.max() / bin_height))
-    size = 1 << int(np.ceil(np.log2(bins + 2 * pad)))
-    spectrum = np.fft.rfft(samples, n=size, axis=1)
-    omega = 2.0 * np.pi * np.fft.rfftfreq(size, d=bin_height)
+    # the shortest fast transform length, not the next power of two (half the time at
+    # some window lengths)
+    size = scipy.fft.next_fast_len(bins + 2 * pad, real=True)
+    spectrum = scipy.fft.rfft(samples, n=size, axis=1)
+    omega = 2.0 * np.pi * scipy.fft.rfftfreq(size, d=bin_height)
     spectrum *= np.exp(-0.5 * (omega[None, :] * sigma[:, None]) ** 2)
-    return np.fft.irfft(spectrum, n=size, axis=1)[:, :bins]
+    return scipy.fft.irfft(spectrum, n=size, axis=1)[:, :bins]
