@@ -30,11 +30,15 @@ HERE = Path(__file__).resolve().parent
 #: Comparisons: label → (posterior quantity, product value). ``rh98`` is the model
 #: waveform's RH98; ``rh98_model_convention`` the product's moved by what its convention
 #: adds on the shot's own waveform; ``rh98_product`` the posterior's RH98 in the product's
-#: convention (:func:`lidarinv.inference.product_metrics.product_relative_heights`).
+#: convention (:func:`lidarinv.inference.product_metrics.product_relative_heights`);
+#: ``rh98_footprint`` the RH98 of the footprint's own waveform, the expected one plus the
+#: discrepancy drawn given the data (:mod:`lidarinv.inference.likelihood.conditional`).
 QUANTITIES = {
     "ground": ("ground", "ground"),
     "rh98": ("rh98", "rh98"),
     "rh98_model_convention": ("rh98", "rh98_model_convention"),
+    "rh98_footprint": ("rh98_footprint", "rh98"),
+    "rh98_footprint_model_convention": ("rh98_footprint", "rh98_model_convention"),
     "rh98_product": ("rh98_product", "rh98"),
     "cover": ("cover", "cover"),
 }
@@ -104,7 +108,7 @@ def invert_one(job):
     record["predictive_p_value"] = result.diagnostics["predictive_p_value"]
     record["posterior"] = {}
     names = {"ground": "ground_elevation", "rh98": "rh98", "rh98_product": "rh98_product",
-             "cover": _cover_name(result)}  # fmt: skip
+             "rh98_footprint": "rh98_footprint", "cover": _cover_name(result)}  # fmt: skip
     for quantity, name in names.items():
         values = result.column(name) if name else np.array([])
         q = np.percentile(values, (5, 50, 95)) if values.size else np.full(3, np.nan)
@@ -195,13 +199,23 @@ def rh98_figure(records, path):
             ax.set_axis_off()
             continue
         x = np.array([r["product"]["rh98"] for r in done])
-        p = np.array([r["posterior"]["rh98"] for r in done])
         colour = ["tab:blue" if r["converged"] else "tab:red" for r in done]
-        ax.errorbar(x, p[:, 1], yerr=[p[:, 1] - p[:, 0], p[:, 2] - p[:, 1]], fmt="none",
-                    ecolor="0.6", lw=0.8)  # fmt: skip
-        ax.scatter(x, p[:, 1], c=colour, s=12, zorder=3)
-        lim = [min(x.min(), p.min()) - 1, max(x.max(), p.max()) + 1]
+        series = (("rh98", "o", "model waveform"), ("rh98_footprint", "s", "footprint"))
+        spans = [x]
+        for name, marker, label in series:
+            p = np.array([r["posterior"].get(name, [np.nan] * 3) for r in done])
+            if not np.any(np.isfinite(p)):
+                continue
+            ax.errorbar(x, p[:, 1], yerr=[p[:, 1] - p[:, 0], p[:, 2] - p[:, 1]], fmt="none",
+                        ecolor="0.6", lw=0.8)  # fmt: skip
+            ax.scatter(x, p[:, 1], c=colour, s=14, marker=marker, zorder=3, label=label)
+            spans.append(p[np.isfinite(p)])
+        values = np.concatenate(spans)
+        lim = [values.min() - 1, values.max() + 1]
         ax.plot(lim, lim, "k-", lw=0.6)
+        legend = ax.legend(fontsize=8, title="RH98 of the", title_fontsize=8)
+        for handle in getattr(legend, "legend_handles", []):  # shapes, not convergence
+            handle.set_color("0.4")
         ax.set_xlabel(f"{instrument.upper()} product RH98 (m)")
         ax.set_ylabel("posterior RH98: median and 90 % interval (m)")
         ax.set_title(f"{instrument.upper()}: red = not converged", fontsize=9)
@@ -221,7 +235,13 @@ def main(argv=None):
     parser.add_argument("--priors", type=Path, help="priors file (default settings without)")
     parser.add_argument("--cohorts", choices=("1", "2", "auto"), help="height cohorts")
     parser.add_argument("--tag", default="")
+    parser.add_argument(
+        "--combine", nargs="+", metavar="TAG",
+        help="write one summary of earlier runs (their --tag) instead of inverting",
+    )  # fmt: skip
     args = parser.parse_args(argv)
+    if args.combine:
+        return combine(args.combine, HERE / "output" / f"real_inversion{args.tag}")
     files = _files(args.data)
     wanted = products(files)
     out = HERE / "output" / f"real_inversion{args.tag}"
@@ -257,6 +277,31 @@ def main(argv=None):
     rh98_figure(records, out / "rh98.png")
     _predictive_figures(records, results, out)
     print(json.dumps(summary, indent=1, default=float))
+    print(f"wrote {out}")
+
+
+def combine(tags, out) -> None:
+    """One summary, shot list and RH98 figure of earlier runs (e.g. the instruments run
+    apart), with their predictive figures."""
+    import shutil
+
+    out.mkdir(parents=True, exist_ok=True)
+    records, summary = [], {"combined": list(tags), "data": {}}
+    for tag in tags:
+        folder = HERE / "output" / f"real_inversion{tag}"
+        part = json.loads((folder / "summary.json").read_text())
+        summary["data"].update(part["data"])
+        for key in ("max_steps", "priors", "cohorts"):
+            summary.setdefault(key, part[key])
+        records += json.loads((folder / "shots.json").read_text())
+        for figure in folder.glob("predictive_*.png"):
+            if folder.resolve() != out.resolve():
+                shutil.copy(figure, out / figure.name)
+    for instrument in sorted({r["instrument"] for r in records}):
+        summary[instrument] = statistics(records, instrument)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
+    (out / "shots.json").write_text(json.dumps(records, indent=1, default=_json))
+    rh98_figure(records, out / "rh98.png")
     print(f"wrote {out}")
 
 

@@ -243,7 +243,10 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
         "shot's own waveform; ``rh98_product`` is the posterior's RH98 in the product's "
         "convention (each sample's expected recorded waveform between the shot's signal end "
         "and start; on LVIS the noise level spread over that extent dominates it, so it "
-        "says more about the extent than about the canopy).\n\n"
+        "says more about the extent than about the canopy); ``rh98_footprint`` is the RH98 "
+        "of the footprint's own waveform (the expected one plus the discrepancy drawn given "
+        "the data), in the model's convention, and ``rh98_footprint_model_convention`` sets "
+        "it beside the product's moved into that convention.\n\n"
     )
     if s.get("priors"):
         text += f"Priors file: ``{' '.join(s['priors'].split())}``.\n\n"
@@ -416,9 +419,13 @@ PAGES = {
             ),
             (
                 "real-inversion-shared",
-                "Posteriors against the products: the development files",
+                "Posteriors against the products: the development files (every GEDI "
+                "quality shot; the first 12 LVIS ones)",
                 render_real_inversion,
-                "python studies/real_inversion.py --max-shots 12 --workers 2",
+                "python studies/real_inversion.py --instrument gedi --tag _shared_gedi; "
+                "python studies/real_inversion.py --instrument lvis --max-shots 12 "
+                "--tag _shared_lvis; python studies/real_inversion.py --combine _shared_gedi "
+                "_shared_lvis --tag _shared",
             ),
         ],
     ),
