@@ -37,27 +37,6 @@ def conditioning_obstacle(like) -> str | None:
     return None
 
 
-def to_basis(like, rows) -> np.ndarray:
-    """Rows of waveforms on the window's bins in the likelihood's basis (whitened, then
-    rotated), as :meth:`.gaussian.ShotLikelihood.log_likelihood` takes the model.
-
-    Parameters
-    ----------
-    like : ShotLikelihood
-    rows : array (n, bins)
-
-    Returns
-    -------
-    array (n, bins)
-    """
-    rows = np.asarray(rows, float)
-    if like.whitening is not None:
-        rows = like.whitening.whiten(rows)
-    if like.rotation is not None:
-        rows = like.rotation.rotate(rows)
-    return rows
-
-
 def from_basis_matrix(like) -> np.ndarray | None:
     """The matrix B that takes rows back from the likelihood's basis, x = x'·B; None
     where the basis is the window's own bins.
@@ -72,7 +51,7 @@ def from_basis_matrix(like) -> np.ndarray | None:
     """
     if like.whitening is None and like.rotation is None:
         return None
-    forward = to_basis(like, np.eye(like.data.axis.size))  # x' = x·forward
+    forward = like.to_basis(np.eye(like.data.axis.size))  # x' = x·forward
     return np.linalg.inv(forward)
 
 
@@ -107,11 +86,10 @@ def discrepancy_given_data(like, signal, values, rng, back=None) -> np.ndarray:
     gain = np.asarray(values["gain"], float)[:, None]
     baseline = np.asarray(values["baseline"], float)[:, None]
     noise = np.asarray(values["noise_sigma"], float)[:, None] ** 2
-    model = to_basis(like, signal)
-    data = like._basis_data.samples
-    unit = np.ones(data.size) if like._unit is None else like._unit
+    model = like.to_basis(signal)
+    data, unit, fixed = like.in_basis()
     residual = data[None, :] - baseline * unit[None, :] - gain * model
-    spread = like._fixed_variance[None, :] + (like.discrepancy_scale * gain * model) ** 2
+    spread = fixed[None, :] + (like.discrepancy_scale * gain * model) ** 2
     total = noise + spread
     with np.errstate(invalid="ignore", divide="ignore"):
         share = np.where(total > 0, spread / total, 0.0)

@@ -159,10 +159,7 @@ class ShotLikelihood:
             Where the gain is integrated out, each row's :func:`.marginal.linear_fit`.
         """
         data, unit = self._basis_data, self._unit
-        if self.whitening is not None:
-            signal = self.whitening.whiten(signal)
-        if self.rotation is not None:
-            signal = self.rotation.rotate(signal)
+        signal = self.to_basis(signal)
         if self.gain_marginal is None:
             like = row_log_likelihood(
                 data, signal, values["gain"], values["baseline"], values["noise_sigma"],
@@ -173,6 +170,42 @@ class ShotLikelihood:
             signal, values["baseline"], values["noise_sigma"], self._fixed_variance, data, unit
         )
         return self.gain_marginal.log_likelihood(fit) + self._log_det_term, fit
+
+    def to_basis(self, rows) -> np.ndarray:
+        """Rows of waveforms on the window's bins in the basis where the likelihood is
+        evaluated: whitened where the read noise is, then rotated into the discrepancy
+        covariance's eigenbasis where there is one.
+
+        Parameters
+        ----------
+        rows : array (n, bins)
+
+        Returns
+        -------
+        array (n, bins)
+        """
+        rows = np.asarray(rows, float)
+        if self.whitening is not None:
+            rows = self.whitening.whiten(rows)
+        if self.rotation is not None:
+            rows = self.rotation.rotate(rows)
+        return rows
+
+    def in_basis(self) -> tuple:
+        """The window in the basis of :meth:`to_basis`.
+
+        Returns
+        -------
+        samples : array (bins,) (DN)
+        unit : array (bins,)
+            The baseline's pattern.
+        variance : array (bins,) (DN²)
+            The fixed discrepancy's variance per component (0 where it has none), to
+            which σn² adds: the basis makes the covariance diagonal.
+        """
+        data = self._basis_data
+        unit = np.ones(data.axis.size) if self._unit is None else self._unit
+        return data.samples, unit, self._fixed_variance
 
     def draw_gain(self, fit, rng) -> np.ndarray:
         """Gains drawn from p(a | θ, y), one per row.
