@@ -272,9 +272,7 @@ def main(argv=None):
         "cohorts": args.cohorts,
         **{i: statistics(records, i) for i in args.instrument},
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
-    (out / "shots.json").write_text(json.dumps(records, indent=1, default=_json))
-    rh98_figure(records, out / "rh98.png")
+    _write(out, summary, records)
     _predictive_figures(records, results, out)
     print(json.dumps(summary, indent=1, default=float))
     print(f"wrote {out}")
@@ -299,10 +297,15 @@ def combine(tags, out) -> None:
                 shutil.copy(figure, out / figure.name)
     for instrument in sorted({r["instrument"] for r in records}):
         summary[instrument] = statistics(records, instrument)
+    _write(out, summary, records)
+    print(f"wrote {out}")
+
+
+def _write(out, summary, records) -> None:
+    """The run's summary, its shots and the figure of RH98 against the product."""
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
     (out / "shots.json").write_text(json.dumps(records, indent=1, default=_json))
     rh98_figure(records, out / "rh98.png")
-    print(f"wrote {out}")
 
 
 def _line(record) -> str:

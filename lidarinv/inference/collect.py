@@ -67,8 +67,9 @@ _CHUNK = 1024
 
 
 def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
-    """The marginalised parameters' draws and the RH in the product's convention of every
-    posterior sample, from one evaluation of the samples (in chunks).
+    """The marginalised parameters' draws and the RH of every posterior sample in the
+    product's convention and of the footprint's own waveform, from one evaluation of the
+    samples (in chunks).
 
     Parameters
     ----------
@@ -118,7 +119,7 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
         )  # fmt: skip
         if conditioned:
             own = discrepancy_given_data(like, terms.signal[good], values, rng, back)
-            own += values["gain"][:, None] * terms.signal[good]
+            own += mean - values["baseline"][:, None]  # a·W + d
             footprint[first + good] = relative_heights(
                 own, problem.window.axis, values["ground_elevation"], list(FOOTPRINT_RH.values())
             )
