@@ -7,10 +7,14 @@ often the product lies inside the 90 % interval (and inside it widened by 1 m, t
 of the products' own published errors: L2A ground RMSE about 1.4 m), convergence and wall
 time. Writes ``studies/output/real_inversion{tag}/`` with ``summary.json``, ``shots.json``
 (one record a shot), ``rh98.png`` (posterior RH98 against the product's, with intervals)
-and ``predictive_*.png`` (typical, worst and multi-layer shots).
+and ``predictive_*.png`` (typical, worst and multi-layer shots). ``shots.json`` is
+rewritten after every shot, so a run stopped early keeps what it finished;
+``--skip-shots`` and ``--max-shots`` split a file's shots into runs that ``--combine``
+joins.
 
     python studies/real_inversion.py [--data ../shared/data/real | examples]
-                                     [--instrument gedi lvis] [--max-shots N]
+                                     [--instrument gedi lvis] [--skip-shots N]
+                                     [--max-shots N]
                                      [--max-steps 20000] [--workers 1] [--seed 1]
                                      [--priors FILE] [--cohorts 1|2|auto] [--tag _NAME]
 """
@@ -228,6 +232,8 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=str(HERE.parent.parent / "shared" / "data" / "real"))
     parser.add_argument("--instrument", nargs="+", default=["gedi", "lvis"])
+    parser.add_argument("--skip-shots", type=int, default=0,
+                        help="leave out an instrument's first N quality shots")  # fmt: skip
     parser.add_argument("--max-shots", type=int, help="at most this many shots an instrument")
     parser.add_argument("--max-steps", type=int, help="sampler step cap (default: settings')")
     parser.add_argument("--workers", type=int, default=1)
@@ -250,11 +256,11 @@ def main(argv=None):
     for instrument in args.instrument:
         shots = [o for o in iter_observations(files[f"{instrument}-l1b"])
                  if isinstance(o, Observation) and (instrument, o.shot_id) in wanted]  # fmt: skip
-        shots = shots[: args.max_shots] if args.max_shots else shots
         seeds = np.random.SeedSequence(args.seed).spawn(len(shots))
+        end = args.skip_shots + args.max_shots if args.max_shots else len(shots)
         jobs += [
             (o, wanted[(instrument, o.shot_id)], args.max_steps, s, args.priors, args.cohorts)
-            for o, s in zip(shots, seeds)
+            for o, s in list(zip(shots, seeds))[args.skip_shots : end]
         ]
     print(f"{len(jobs)} shots to invert")
     records, results = [], {}
@@ -265,6 +271,7 @@ def main(argv=None):
             post = record.get("posterior", {})
             print(f"{record['instrument']} {record['shot']}: {record.get('error', '')}"
                   f"{'' if not post else _line(record)}", flush=True)  # fmt: skip
+            _write_shots(out, records)
     summary = {
         "data": {k: Path(v).name for k, v in files.items()},
         "max_steps": args.max_steps,
@@ -287,10 +294,12 @@ def combine(tags, out) -> None:
     records, summary = [], {"combined": list(tags), "data": {}}
     for tag in tags:
         folder = HERE / "output" / f"real_inversion{tag}"
-        part = json.loads((folder / "summary.json").read_text())
-        summary["data"].update(part["data"])
-        for key in ("max_steps", "priors", "cohorts"):
-            summary.setdefault(key, part[key])
+        done = folder / "summary.json"
+        part = json.loads(done.read_text()) if done.exists() else {"stopped_early": True}
+        summary["data"].update(part.get("data", {}))
+        for key in ("max_steps", "priors", "cohorts", "stopped_early"):
+            if key in part:
+                summary.setdefault(key, part[key])
         records += json.loads((folder / "shots.json").read_text())
         for figure in folder.glob("predictive_*.png"):
             if folder.resolve() != out.resolve():
@@ -304,8 +313,12 @@ def combine(tags, out) -> None:
 def _write(out, summary, records) -> None:
     """The run's summary, its shots and the figure of RH98 against the product."""
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
-    (out / "shots.json").write_text(json.dumps(records, indent=1, default=_json))
+    _write_shots(out, records)
     rh98_figure(records, out / "rh98.png")
+
+
+def _write_shots(out, records) -> None:
+    (out / "shots.json").write_text(json.dumps(records, indent=1, default=_json))
 
 
 def _line(record) -> str:
