@@ -3,9 +3,11 @@ its adaptation: when to fit it, and its last fit kept with an HDF5 chain so that
 resumed run makes it again.
 
 A move is adaptive if it has a ``fit(points) -> bool`` method.
-:func:`..sampler.run_sampler` fits the adaptive moves at a few early steps and discards
-the steps before the last fit: after it every proposal is fixed (one fixed q, so the
-Hastings factor makes the chain exact), and the chain kept is an exact MCMC chain.
+:func:`..sampler.run_sampler` fits the adaptive moves at a few early steps. Between two
+fits every proposal is fixed (one fixed q, so the Hastings factor makes that stretch an
+exact MCMC chain that leaves the posterior invariant), and each fit only changes q for
+the steps after it. Burn-in (a multiple of τ) reaches at least the first fit; steps
+between later fits are kept.
 """
 
 import emcee
@@ -20,9 +22,8 @@ class ChainStudentMove(EnsembleStudentMove):
     The ensemble-t fits its t to the 32 walkers of the other half, a noisy covariance in
     10 dimensions; this one fits it to thousands of points of the chain so far. Until
     :meth:`fit` is called it is the ensemble-t move. :func:`..sampler.run_sampler` fits
-    it at a few early steps and then freezes it: from the last fit on the proposal is one
-    fixed distribution, so the chain is an exact MCMC chain, and the run discards the
-    steps before that fit as burn-in.
+    it at a few early steps and then freezes it: between fits the proposal is one fixed
+    distribution, so each stretch is an exact MCMC chain.
     """
 
     def __init__(self, dof=8.0, scale=1.0, **kwargs):
@@ -113,8 +114,8 @@ def worth_refitting(step, tau, fit_fraction, tau_multiple, max_steps) -> bool:
     -------
     bool
         Only while the run, ``tau_multiple`` times the latest τ but at most ``max_steps``,
-        is expected to last at least ``step / fit_fraction`` steps, since each fit
-        discards the steps before it; always while τ is unknown, within that cap.
+        is expected to last at least ``step / fit_fraction`` steps (a short run is left
+        with the proposal it has); always while τ is unknown, within that cap.
     """
     expected = tau_multiple * np.max(tau) if np.all(np.isfinite(tau)) else np.inf
     return fit_fraction * min(expected, max_steps) >= step
