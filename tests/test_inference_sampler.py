@@ -252,6 +252,39 @@ def test_chain_t_is_fitted_then_frozen_and_refitted_on_resuming(tmp_path):
     assert whole.burn == resumed.burn == 200 // 3  # τ unknown: a third, past the fit at 40
 
 
+def test_steps_between_chain_t_refits_are_kept(monkeypatch):
+    """Burn-in is 5 τ, at least the first fit, not the steps before the last refit: between
+    fits the proposal is fixed, so each stretch is an exact chain. The kept chain, a refit
+    inside it, still has the closed form's mean."""
+    from lidarinv.inference.sampling import sampler as sampler_module
+
+    fitted, fit_moves = [], sampler_module.fit_moves
+
+    def recording_fit(sampler, adaptive, step=None):
+        fitted.append(sampler.iteration)
+        return fit_moves(sampler, adaptive, step)
+
+    monkeypatch.setattr(sampler_module, "fit_moves", recording_fit)
+    rng = np.random.default_rng(5)
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
+    toy = LinearGaussianToy(space, rng)
+    settings = SamplerSettings(
+        n_walkers=16,
+        max_steps=4000,
+        check_every=100,
+        moves=(("de", 0.5), ("chain-t", 0.5)),
+        fit_steps=(20, 60),  # τ is unknown at both (the first check is at 100): both made
+    )
+    run = run_sampler(toy, space, rng, settings)
+    assert run.converged, run.flags
+    assert fitted == [20, 60]
+    assert run.burn == max(20, int(np.ceil(settings.burn_taus * np.max(run.tau))))
+    assert run.burn < 60  # the stretch between the fits is kept
+    x, _ = space.from_unbounded(run.chain[run.burn :].reshape(-1, 3))
+    mcse = np.sqrt(np.diag(toy.cov) * np.max(run.tau) / x.shape[0])
+    np.testing.assert_array_less(np.abs(x.mean(axis=0) - toy.mean), 5 * mcse)
+
+
 def test_chain_sampled_in_other_coordinates_is_not_resumed(tmp_path):
     import emcee
 
