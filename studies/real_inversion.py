@@ -110,6 +110,7 @@ def invert_one(job):
     record["steps"] = int(result.diagnostics.get("n_steps", 0))
     record["cohorts"] = result.settings["cohorts"]
     record["predictive_p_value"] = result.diagnostics["predictive_p_value"]
+    record["residual_scale"] = result.diagnostics.get("residual_scale", np.nan)
     record["posterior"] = {}
     names = {"ground": "ground_elevation", "rh98": "rh98", "rh98_product": "rh98_product",
              "rh98_footprint": "rh98_footprint", "cover": _cover_name(result)}  # fmt: skip
@@ -158,6 +159,8 @@ def statistics(records, instrument) -> dict:
         "p90_seconds": float(np.percentile([r["seconds"] for r in done], 90)) if done else None,
         "two_cohorts": int(sum(r.get("cohorts") == 2 for r in done)),
         "misfit_flagged": int(sum(r.get("predictive_p_value", 1.0) < 0.01 for r in done)),
+        "median_residual_scale": _median_of(done, "residual_scale"),
+        "p90_residual_scale": _median_of(done, "residual_scale", 90),
     }
     for q, (name, key) in QUANTITIES.items():
         triples = [
@@ -319,6 +322,11 @@ def _write(out, summary, records) -> None:
 
 def _write_shots(out, records) -> None:
     (out / "shots.json").write_text(json.dumps(records, indent=1, default=_json))
+
+
+def _median_of(records, key, percentile=50):
+    values = [r[key] for r in records if np.isfinite(r.get(key, np.nan))]
+    return float(np.percentile(values, percentile)) if values else None
 
 
 def _line(record) -> str:

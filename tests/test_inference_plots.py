@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from tiny_results import tiny_result
 
-from lidarinv.inference.collect import replicate_observation
+from lidarinv.inference.collect import fit_statistics, replicate_observation
 from lidarinv.inference.plots import corner_plot, predictive_plot
 from lidarinv.inference.shot import WindowData
 from lidarinv.plotting import unit_label
@@ -77,6 +77,22 @@ def test_replicated_observations_stop_at_the_floor_and_the_digitiser_maximum():
 
 def _texts(figure):
     return [text for ax in figure.axes for text in ax.get_legend_handles_labels()[1]]
+
+
+def test_predictive_check_gives_the_size_of_a_misfit_beside_its_p_value():
+    """Residuals twice the modelled noise: p near 0 and a residual scale near 2; residuals
+    at the modelled noise: no flag (p ≥ 0.01) and a scale near 1."""
+    rng = np.random.default_rng(4)
+    samples, bins, sigma = 400, 300, 2.0
+    mean = np.tile(50.0 * np.exp(-0.5 * ((np.arange(bins) - 150) / 20.0) ** 2), (samples, 1))
+    variance = np.full((samples, bins), sigma**2)
+    replicated = mean + sigma * rng.standard_normal((samples, bins))
+    log_likelihood = rng.normal(-300.0, 3.0, samples)
+    for factor, p_range in ((2.0, (0.0, 0.01)), (1.0, (0.01, 1.01))):
+        observed = mean[0] + factor * sigma * rng.standard_normal(bins)
+        fit = fit_statistics(log_likelihood, observed, replicated, mean, variance)
+        assert p_range[0] <= fit["predictive_p_value"] < p_range[1]
+        assert abs(fit["residual_scale"] - factor) < 0.1 * factor
 
 
 def test_predictive_figure_marks_and_explains_floor_saturation_and_truth():

@@ -235,6 +235,10 @@ def fit_statistics(log_likelihood, observed, replicated, mean, variance) -> dict
         ``predictive_p_value``: P(T(y_rep, θ) ≥ T(y, θ)) for the discrepancy
         T(y, θ) = Σ (y − μθ)²/σθ² over the window (Gelman, Meng & Stern 1996): near 0, the
         waveform departs from the model by more than its noise and discrepancy allow.
+        ``residual_scale``: √(mean T(y, θ) / mean T(y_rep, θ)), the residuals' RMS over the
+        scatter the model allows; 1 where the model explains the waveform, and how far off
+        it is where the p-value flags a misfit (over a long window a p-value finds small
+        misfits as readily as large ones).
     """
     deviance = -2.0 * np.asarray(log_likelihood, float)
     deviance = deviance[np.isfinite(deviance)]
@@ -245,6 +249,7 @@ def fit_statistics(log_likelihood, observed, replicated, mean, variance) -> dict
         "dic": float(np.mean(deviance) + p_v) if deviance.size else float("nan"),
         "effective_parameters": p_v,
         "predictive_p_value": float(np.mean(t_replicated >= t_observed)),
+        "residual_scale": float(np.sqrt(np.mean(t_observed) / np.mean(t_replicated))),
     }
 
 
@@ -261,7 +266,8 @@ def _misfit_flags(fit) -> list:
         return []
     return [
         f"misfit: the waveform departs from the model beyond its noise and discrepancy "
-        f"(posterior-predictive p = {fit['predictive_p_value']:.3f}; see the residual panel)"
+        f"(posterior-predictive p = {fit['predictive_p_value']:.3f}; residuals "
+        f"{fit['residual_scale']:.2f}× the scatter the model allows; see the residual panel)"
     ]
 
 

@@ -169,7 +169,8 @@ class InversionResult:
         if "predictive_p_value" in d:
             lines.append(
                 f"fit: DIC {d['dic']:.1f} ({d['effective_parameters']:.1f} effective "
-                f"parameters), posterior-predictive p {d['predictive_p_value']:.3f}"
+                f"parameters), posterior-predictive p {d['predictive_p_value']:.3f}, "
+                f"residuals {d.get('residual_scale', np.nan):.2f}× the modelled scatter"
             )
         if "cohorts" in d:
             bic = ", ".join(f"{k} cohort(s) {v:.1f}" for k, v in d["cohorts"]["bic"].items())
@@ -192,6 +193,7 @@ class InversionResult:
             "n_steps": int(self.diagnostics["n_steps"]),
             "max_tau": float(np.max(self.diagnostics["tau"])),
             "predictive_p_value": float(self.diagnostics.get("predictive_p_value", np.nan)),
+            "residual_scale": float(self.diagnostics.get("residual_scale", np.nan)),
             "cohorts": int((self.settings or {}).get("cohorts", 1)),
             "flags": "; ".join(self.flags),
         }
