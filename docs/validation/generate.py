@@ -258,8 +258,15 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
             f"**{instrument.upper()}.** {part['inverted']} of {part['shots']} shots inverted, "
             f"{part['converged']} converged (the rest flagged: "
             f"{part['not_converged_flagged']}); median {_cell(part.get('median_seconds'))} s "
-            f"a shot, 90th percentile {_cell(part.get('p90_seconds'))} s.\n\n"
+            f"a shot, 90th percentile {_cell(part.get('p90_seconds'))} s."
         )
+        if part.get("median_residual_scale") is not None:
+            text += (
+                f" Misfit flagged on {part.get('misfit_flagged')}; residuals "
+                f"{_cell(part['median_residual_scale'])}× the modelled scatter at the median "
+                f"shot, {_cell(part.get('p90_residual_scale'))}× at the 90th percentile."
+            )
+        text += "\n\n"
         header = ["quantity", "shots", "median (posterior − product)", "median |d|",
                   "90th pct |d|", "inside", "widened"]  # fmt: skip
         rows = [
