@@ -278,3 +278,42 @@ def _ground_deposit(sim, found, profiles, ground):
     else:
         weights[np.argmin(np.abs(unique))] = at_ground
     return unique * h, weights
+
+
+def footprint_crown_cover(stand, centre, sigma, radius_sigmas=3.0, step=0.2) -> float:
+    """Crown cover of one footprint: the fraction of the ground under at least one crown,
+    weighted by the Gaussian footprint.
+
+    Parameters
+    ----------
+    stand : forward.stand.Stand
+    centre : (float, float) (m)
+        The beam centre.
+    sigma : float (m)
+        Footprint σf.
+    radius_sigmas : float
+        The sum runs over a disc of this many σf.
+    step : float (m)
+        Grid step of the sum.
+
+    Returns
+    -------
+    float
+        Σ w·[covered] / Σ w with w = exp(−r²/2σf²) over the grid nodes in the disc; 0 with
+        no crown over it, 1 with every node covered.
+    """
+    reach = radius_sigmas * sigma
+    offsets = np.arange(-reach, reach + step / 2, step)
+    dx, dy = np.meshgrid(offsets, offsets, indexing="ij")
+    inside = dx**2 + dy**2 <= reach**2
+    weight = np.where(inside, np.exp(-(dx**2 + dy**2) / (2.0 * sigma**2)), 0.0)
+    covered = np.zeros(dx.shape, bool)
+    x, y = stand.x - centre[0], stand.y - centre[1]
+    near = np.hypot(x, y) <= reach + stand.crown_radius
+    for cx, cy, r in zip(x[near], y[near], stand.crown_radius[near]):
+        i0, i1 = np.searchsorted(offsets, [cx - r, cx + r], side="left")
+        j0, j1 = np.searchsorted(offsets, [cy - r, cy + r], side="left")
+        i1, j1 = i1 + 1, j1 + 1  # the box's last node may lie on the crown's edge
+        box = (dx[i0:i1, j0:j1] - cx) ** 2 + (dy[i0:i1, j0:j1] - cy) ** 2 <= r * r
+        covered[i0:i1, j0:j1] |= box
+    return float(np.sum(weight[covered]) / np.sum(weight))

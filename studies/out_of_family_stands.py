@@ -34,9 +34,12 @@ estimate them:
 - ``rh98``: RH98 of the true noise-free waveform, against the posterior's RH98 of its
   model waveform (both in the GEDI L2A convention);
 - ``cover``: the footprint's crown cover, the footprint-weighted fraction of the ground
-  under at least one crown (:func:`footprint_crown_cover`), against the posterior's crown
-  cover, whose expectation over a stationary stand's footprints it is; the "cover" of the
-  target;
+  under at least one crown (:func:`forward.footprint.footprint_crown_cover`), against the
+  posterior's crown cover, whose expectation over a stationary stand's footprints it is,
+  and against the posterior's ``footprint_cover``, the same footprint quantity of a
+  realisation of each sample's stand (:func:`lidarinv.inference.realisations.
+  footprint_cover`), which can be 0 (no crown within reach) or 1 (every node covered)
+  as the truth can; the "cover" of the target;
 - ``gap_cover``: 1 − P̄(0)/P_u of the simulated footprint, against the posterior's
   ``gap_cover``, the quantity the waveform's ground energy measures (and GEDI L2B
   reports);
@@ -51,6 +54,7 @@ from functools import partial
 
 import numpy as np
 
+from forward.footprint import footprint_crown_cover
 from forward.instrument import instrument_preset
 from forward.realise import realise
 from forward.stand import Stand
@@ -63,9 +67,6 @@ INSTRUMENT, BASELINE, NOISE_SIGMA = "gedi", 50.0, 2.0
 #: The window reaches this far below the ground and above the footprint's tallest crown
 #: (m), as :func:`lidarinv.examples.synthetic_shot`'s.
 BELOW_GROUND_M, ABOVE_TOP_M = 12.0, 18.0
-
-#: Grid step (m) of :func:`footprint_crown_cover`; footprint radius of the sum in σf.
-COVER_GRID_M, COVER_RADIUS_SIGMAS = 0.2, 3.0
 
 
 def _canopy(rng, **stand) -> StandParams:
@@ -199,36 +200,6 @@ STAND_KINDS = {
 def _join(a: Stand, b: Stand) -> Stand:
     columns = ("x", "y", "height", "crown_length", "crown_radius", "shape", "favd")
     return Stand(**{c: np.concatenate([getattr(a, c), getattr(b, c)]) for c in columns})
-
-
-def footprint_crown_cover(stand, centre, footprint_sigma_m, step=COVER_GRID_M) -> float:
-    """Crown cover of one footprint: the fraction of the ground under at least one crown,
-    weighted by the Gaussian footprint.
-
-    Parameters
-    ----------
-    stand : forward.stand.Stand
-    centre : (float, float) (m)
-    footprint_sigma_m : float (m)
-    step : float (m)
-        Grid step of the sum, over a disc of :data:`COVER_RADIUS_SIGMAS` σf.
-
-    Returns
-    -------
-    float
-        Σ w·[covered] / Σ w with w = exp(−r²/2σf²) over the grid nodes.
-    """
-    reach = COVER_RADIUS_SIGMAS * footprint_sigma_m
-    offsets = np.arange(-reach, reach + step / 2, step)
-    dx, dy = (a.ravel() for a in np.meshgrid(offsets, offsets))
-    inside = dx**2 + dy**2 <= reach**2
-    gx, gy = dx[inside] + centre[0], dy[inside] + centre[1]
-    weight = np.exp(-(dx[inside] ** 2 + dy[inside] ** 2) / (2.0 * footprint_sigma_m**2))
-    covered = np.zeros(gx.size, bool)
-    near = np.hypot(stand.x - centre[0], stand.y - centre[1]) <= reach + stand.crown_radius
-    for x, y, r in zip(stand.x[near], stand.y[near], stand.crown_radius[near]):
-        covered |= (gx - x) ** 2 + (gy - y) ** 2 <= r * r
-    return float(np.sum(weight[covered]) / np.sum(weight))
 
 
 def draw_scene(kind, rng):

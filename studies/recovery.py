@@ -62,11 +62,16 @@ from lidarinv.observe.analyse import analyse  # noqa: E402
 
 #: The truth each posterior quantity is held to, where its name differs: the footprint's
 #: RH98 (the expected waveform plus the discrepancy drawn given the data) is an estimate
-#: of the noise-free waveform's RH98, as the model's RH98 is.
-TRUTH_OF = {"rh98_footprint": "rh98"}
+#: of the noise-free waveform's RH98, as the model's RH98 is; the footprint's crown cover
+#: (a realisation of each sample's stand; out-of-family truths only) of the footprint's
+#: own, which an out-of-family shot's ``cover`` is.
+TRUTH_OF = {"rh98_footprint": "rh98", "footprint_cover": "cover"}
+#: Posterior samples given a draw of the footprint's crown cover, for out-of-family truths.
+FOOTPRINT_COVER_DRAWS = 256
 
 QUANTITIES = (
     "cover",
+    "footprint_cover",
     "gap_cover",
     "pai",
     "top_height",
@@ -207,7 +212,8 @@ def one_shot(task):
     row["start_modes"] = int(result.diagnostics["start_modes"])
     row["log_prob"] = {"best_in_chain": result.diagnostics["map_log_prob"]}
     row["log_prob"]["truth"] = truth_log_prob(obs, settings)
-    row["posterior"] = {name: result.summary()[name] for name in QUANTITIES}
+    summary = result.summary()
+    row["posterior"] = {name: summary[name] for name in QUANTITIES if name in summary}
     return row
 
 
@@ -236,8 +242,8 @@ def _coverage(rows, name, lo, hi):
 
 def _known(rows, name):
     """Rows with a true value of ``name`` (the footprint's tallest stem only exists in an
-    explicit stand)."""
-    return [r for r in rows if np.isfinite(r["truth"].get(name, np.nan))]
+    explicit stand) and a posterior one (the footprint's cover only where drawn)."""
+    return [r for r in rows if np.isfinite(r["truth"].get(name, np.nan)) and name in r["posterior"]]
 
 
 def standardised_errors(rows, name) -> np.ndarray:
@@ -454,6 +460,8 @@ def main():
         settings = replace(
             settings, cohorts=args.cohorts if args.cohorts == "auto" else int(args.cohorts)
         )
+    if args.truth == OUT_OF_FAMILY:  # their cover is the footprint's own
+        settings = replace(settings, footprint_cover_draws=FOOTPRINT_COVER_DRAWS)
     kinds = tuple(args.kinds) if args.kinds else None
     tasks = [
         (i, int(s), not args.inverse_crime, settings, args.truth, kinds)

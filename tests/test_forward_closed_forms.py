@@ -141,3 +141,22 @@ def test_understory_layer_factorises_the_gap(gedi):
     assert wf.ground_gap == pytest.approx(np.exp(-gedi.extinction_per_favd * 0.8), rel=1e-12)
     assert wf.foliage_area.sum() == pytest.approx(0.8, rel=1e-9)
     assert wf.canopy.sum() == pytest.approx(0.45 * (1 - wf.ground_gap), rel=1e-8)
+
+
+def test_footprint_crown_cover_is_nought_one_or_the_weighted_disc_of_a_centred_crown():
+    """No crown: 0. A crown over the whole 3σf disc: 1. One crown of radius r at the beam
+    centre: the Gaussian weight inside r over the weight inside 3σf."""
+    from forward.footprint import footprint_crown_cover
+    from forward.stand import Stand
+
+    sigma = 6.0
+
+    def one(radius, x=0.0):
+        return Stand.from_arrays(x=[x], y=[0.0], height=[10.0], crown_length=[5.0],
+                                 crown_radius=[radius], favd=0.5)  # fmt: skip
+
+    assert footprint_crown_cover(one(2.0, x=30.0), (0.0, 0.0), sigma) == 0.0
+    assert footprint_crown_cover(one(3.0 * sigma + 0.5), (0.0, 0.0), sigma) == 1.0
+    r = 5.0
+    expected = (1 - np.exp(-(r**2) / (2 * sigma**2))) / (1 - np.exp(-4.5))
+    assert footprint_crown_cover(one(r), (0.0, 0.0), sigma) == pytest.approx(expected, rel=0.01)

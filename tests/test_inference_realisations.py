@@ -16,7 +16,11 @@ from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, SamplerSettings, build_problem, invert_shot
 from lidarinv.inference.likelihood.covariance import Rotation
 from lidarinv.inference.likelihood.gaussian import ShotLikelihood
-from lidarinv.inference.realisations import discrepancy_covariance, realisation_residuals
+from lidarinv.inference.realisations import (
+    discrepancy_covariance,
+    footprint_cover,
+    realisation_residuals,
+)
 from lidarinv.inference.settings import RealisationSettings
 
 STAND = SYNTHETIC_SHOTS["gedi-mixed"].params
@@ -200,6 +204,20 @@ def test_realisations_scatter_about_the_expected_waveform(problems, shot, rng):
     top = shot.truth["top_height"]
     above = problem.window.axis > top + 6.0  # beyond the tallest crown by 6 pulse sd
     assert np.all(spread[above] < 1e-6 * spread.max())
+
+
+def test_footprint_cover_draws_scatter_about_the_stand_cover(problems, shot, rng):
+    """One footprint's crown cover is a draw whose mean over footprints is the stationary
+    stand's cover; the samples not given a draw are NaN."""
+    problem = problems[False]
+    truth = np.array([shot.truth[name] for name in problem.space.names])
+    x = np.repeat(truth[None, :], 150, axis=0)
+    draws = footprint_cover(problem.log_posterior, problem.instrument, x, rng, draws=120)
+    drawn = draws[np.isfinite(draws)]
+    assert drawn.size == 120 and np.all((drawn >= 0) & (drawn <= 1))
+    assert drawn.std() > 0.01  # a footprint is a small sample of the stand
+    standard_error = drawn.std() / np.sqrt(drawn.size)
+    assert abs(drawn.mean() - shot.truth["cover"]) < 4 * standard_error
 
 
 def test_an_inversion_with_the_simulated_covariance_runs_and_says_so(shot):

@@ -92,17 +92,6 @@ def test_sparse_stands_cover_less_than_dense_ones(ood):
         assert pairs_within(stand, 0.79, 3 * 4 * SIGMA_F) == 0
 
 
-def test_footprint_crown_cover_of_one_centred_crown_is_its_weighted_disc(ood):
-    from forward.stand import Stand
-
-    r = 5.0
-    one = Stand.from_arrays(x=[0.0], y=[0.0], height=[10.0], crown_length=[5.0],
-                            crown_radius=[r], favd=0.5)  # fmt: skip
-    # Gaussian weight inside radius r over the weight inside the 3σf disc
-    expected = (1 - np.exp(-(r**2) / (2 * SIGMA_F**2))) / (1 - np.exp(-4.5))
-    assert ood.footprint_crown_cover(one, (0.0, 0.0), SIGMA_F) == pytest.approx(expected, rel=0.02)
-
-
 def test_a_shot_carries_the_footprint_truths(ood):
     obs = ood.out_of_family_shot(np.random.default_rng(9), index=3)  # the emergent kind
     truth = obs.truth

@@ -16,6 +16,7 @@ from .model.waveform import RH_LEVELS, relative_heights
 from .posterior import BLOB_NAMES, BLOB_UNITS
 from .problem import InversionProblem
 from .product_metrics import product_relative_heights
+from .realisations import footprint_cover
 from .result import QUANTILES, InversionResult
 from .sampling.sampler import SamplerRun
 
@@ -25,6 +26,8 @@ _BAND_SAMPLES = 400
 
 #: Derived quantity: the tallest stem within the footprint, a posterior-predictive draw.
 FOOTPRINT_TOP = "footprint_top_height"
+#: Derived quantity: the footprint's own crown cover, where settings ask for its draws.
+FOOTPRINT_COVER = "footprint_cover"
 
 
 def footprint_top_height(problem: InversionProblem, x, density_per_ha, rng) -> np.ndarray:
@@ -318,6 +321,12 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     fit = fit_statistics(
         terms.log_likelihood[good], problem.window.samples, replicated, rep_mean, rep_variance
     )
+    units = {FOOTPRINT_TOP: "m"}
+    if problem.settings.footprint_cover_draws:  # the last of the rng's uses: the rest as without
+        derived[FOOTPRINT_COVER] = footprint_cover(
+            post, problem.instrument, x, rng, problem.settings.footprint_cover_draws
+        )
+        units[FOOTPRINT_COVER] = "1"
     top = float(np.max(values["top_height"]))
     profile_heights = np.linspace(0.0, top, 60)
     profile = post.mapping.crown_volume_profile(values, profile_heights)
@@ -335,7 +344,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
         units={
             **{p.name: p.units for p in space.parameters},
             **BLOB_UNITS,
-            FOOTPRINT_TOP: "m",
+            **units,
             **dict.fromkeys(PRODUCT_RH, "m"),
             **dict.fromkeys(FOOTPRINT_RH, "m"),
         },

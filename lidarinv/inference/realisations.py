@@ -31,6 +31,7 @@ import numpy as np
 
 from forward.engine import WaveformSimulator
 from forward.expected.vectors import CONDITIONING_FIELDS, FIELD_INDEX, params_from_vector
+from forward.footprint import footprint_crown_cover
 from forward.realise import realise, scene_extras
 
 from .model.tallest_stem import (
@@ -83,17 +84,9 @@ def realisation_residuals(
     if not np.all(np.isfinite(terms.log_posterior)):
         raise ValueError("every parameter draw of the discrepancy needs a finite posterior")
     values = post.space.values(x)
-    vectors, _ = post.mapping.model_vectors(values)
-    full = post.model.expected.full_vectors(vectors)
-    full[:, [FIELD_INDEX[name] for name in CONDITIONING_FIELDS]] = list(
-        CONDITIONING_FIELDS.values()
-    )  # the whole stand, whatever stem a row's footprint is conditioned on
     side = plot_diameters * instrument.footprint_diameter_m
     centre = (side / 2, side / 2)
-    stands = []
-    for row in full:
-        params, _ = params_from_vector(row, post.model.expected.template)
-        stands.append((params, realise(params, side, rng)))
+    stands, full = explicit_stands(post, x, side, rng)
     names = post.space.names
     if set(TALLEST_STEM_LATENTS) & set(names):  # each row on its own stand's tallest stem
         sigma = instrument.footprint_sigma_m
@@ -117,6 +110,72 @@ def realisation_residuals(
         explicit = post.model.widen(explicit[None, :], {k: v[i : i + 1] for k, v in values.items()})
         residuals[i] = gain[i] * (explicit[0] - terms.signal[i])
     return residuals
+
+
+def explicit_stands(log_posterior: LogPosterior, x, side, rng) -> tuple[list, np.ndarray]:
+    """One explicit stand per parameter row, the whole stand whatever stem a row's
+    footprint is conditioned on.
+
+    Parameters
+    ----------
+    log_posterior : LogPosterior
+    x : array (n, ndim)
+        Physical parameters.
+    side : float (m)
+        Side of each square plot.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    stands : list of (forward.stand_params.StandParams, forward.stand.Stand)
+    full : array (n, fields)
+        The rows' expected-model vectors.
+    """
+    post = log_posterior
+    vectors, _ = post.mapping.model_vectors(post.space.values(x))
+    full = post.model.expected.full_vectors(vectors)
+    full[:, [FIELD_INDEX[name] for name in CONDITIONING_FIELDS]] = list(
+        CONDITIONING_FIELDS.values()
+    )
+    stands = []
+    for row in full:
+        params, _ = params_from_vector(row, post.model.expected.template)
+        stands.append((params, realise(params, side, rng)))
+    return stands, full
+
+
+def footprint_cover(log_posterior: LogPosterior, instrument, x, rng, draws) -> np.ndarray:
+    """Draws of the footprint's own crown cover, a posterior-predictive quantity.
+
+    A sample's ``cover`` is its stationary stand's, the expectation over footprints; one
+    footprint's cover scatters about it (no crown within reach in a sparse stand, every
+    node covered in a dense one), and that is what a footprint's truth or a plot
+    measured under it holds. Each draw realises the sample's stand
+    (:func:`forward.realise.realise`) and takes its footprint-weighted crown cover
+    (:func:`forward.footprint.footprint_crown_cover`).
+
+    Parameters
+    ----------
+    log_posterior : LogPosterior
+    instrument : forward.instrument.Instrument
+    x : array (n, ndim)
+        Posterior samples (physical units).
+    rng : numpy.random.Generator
+    draws : int
+        Samples given a draw (picked at random; each costs an explicit stand).
+
+    Returns
+    -------
+    array (n,)
+        The draws; NaN for the samples not picked.
+    """
+    out = np.full(x.shape[0], np.nan)
+    pick = rng.choice(x.shape[0], size=min(int(draws), x.shape[0]), replace=False)
+    side = 3.0 * instrument.footprint_diameter_m
+    stands, _ = explicit_stands(log_posterior, x[pick], side, rng)
+    sigma = instrument.footprint_sigma_m
+    out[pick] = [footprint_crown_cover(stand, (side / 2, side / 2), sigma) for _, stand in stands]
+    return out
 
 
 def discrepancy_covariance(residuals, shrinkage) -> np.ndarray:

@@ -171,6 +171,11 @@ class InversionSettings:
     model : forward.expected.ModelSettings
         Its ``backend`` also chooses the inversion's compiled or numpy paths (stand
         mapping, ridge maps).
+    footprint_cover_draws : int
+        Posterior samples given a draw of the footprint's own crown cover,
+        ``footprint_cover`` (:func:`.realisations.footprint_cover`: an explicit stand each,
+        a few milliseconds); 0 (the default) for none. The stand's ``cover`` is the
+        expectation over footprints; this is what one footprint holds.
     """
 
     instrument: str | None = None
@@ -195,10 +200,13 @@ class InversionSettings:
     realisations: RealisationSettings = field(default_factory=RealisationSettings)
     tallest_stem: bool = False
     cohorts: int | str = AUTO
+    footprint_cover_draws: int = 0
 
     def __post_init__(self):
         if self.cohorts not in COHORT_COUNTS:
             raise ValueError(f"cohorts must be one of {COHORT_COUNTS}, got {self.cohorts!r}")
+        if not self.footprint_cover_draws >= 0:
+            raise ValueError(f"footprint_cover_draws must be ≥ 0, got {self.footprint_cover_draws}")
 
     @classmethod
     def from_priors_file(cls, path, **changes) -> "InversionSettings":
