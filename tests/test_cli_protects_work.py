@@ -121,6 +121,7 @@ def test_simulate_refuses_to_overwrite_and_names_the_file(tmp_path, capsys):
         ["--max-steps", "-5"],
         ["--instrument", "icesat"],
         ["--cohorts", "3"],
+        ["--footprint-cover", "0"],
     ],
 )
 def test_parser_refuses_values_a_run_cannot_use(option, capsys):
@@ -172,6 +173,8 @@ def test_batch_takes_max_steps_walkers_and_instrument():
     assert batch_settings(build_parser().parse_args(["batch", "f.h5", "-o", "r.h5"])) is None
     auto = build_parser().parse_args(["batch", "f.h5", "-o", "r.h5", "--cohorts", "auto"])
     assert batch_settings(auto).cohorts == "auto"
+    drawn = build_parser().parse_args(["batch", "f.h5", "-o", "r.h5", "--footprint-cover", "64"])
+    assert batch_settings(drawn).footprint_cover_draws == 64
 
 
 # -- batch: failures in the exit status, shots not found ---------------------------------

@@ -52,7 +52,8 @@ def add_arguments(parser) -> None:
 def _settings(args):
     """Inversion settings from the options; None (the inversion's defaults) when none of
     them is given, so that a results file written without options resumes as before."""
-    given = (args.priors, args.instrument, args.max_steps, args.walkers, args.cohorts)
+    given = (args.priors, args.instrument, args.max_steps, args.walkers, args.cohorts,
+             args.footprint_cover)  # fmt: skip
     if all(value is None for value in given):
         return None
     try:

@@ -32,6 +32,11 @@ HEADLINE = (
         "canopy cover",
         "gap-based, 1 − P(0) through the tree crowns (compare with GEDI L2B cover)",
     ),
+    (
+        "footprint_cover",
+        "crown cover of the footprint",
+        "footprint-weighted, of a realisation of the stand (--footprint-cover)",
+    ),
     ("cover", "crown cover", "fraction of the ground under at least one crown"),
 )
 

@@ -32,8 +32,8 @@ def walker_count(text: str) -> int:
 
 
 def add_inversion_options(parser) -> None:
-    """``--priors``, ``--instrument``, ``--max-steps``, ``--walkers``, ``--cohorts`` and
-    ``--overwrite``."""
+    """``--priors``, ``--instrument``, ``--max-steps``, ``--walkers``, ``--cohorts``,
+    ``--footprint-cover`` and ``--overwrite``."""
     parser.add_argument("--priors", type=Path, help="TOML file of prior overrides")
     parser.add_argument(
         "--instrument",
@@ -56,6 +56,13 @@ def add_inversion_options(parser) -> None:
         "one with the lower BIC at its MAP",
     )
     parser.add_argument(
+        "--footprint-cover",
+        type=positive_int,
+        metavar="N",
+        help="draw the footprint's own crown cover for N posterior samples (an explicit "
+        "stand each; off by default)",
+    )
+    parser.add_argument(
         "--overwrite", action="store_true", help="replace results the output already holds"
     )
 
@@ -68,6 +75,8 @@ def inversion_settings(args, measured_pulse: bool = True):
     changes = {} if args.instrument is None else {"instrument": args.instrument}
     if getattr(args, "cohorts", None) is not None:
         changes["cohorts"] = args.cohorts if args.cohorts == "auto" else int(args.cohorts)
+    if getattr(args, "footprint_cover", None) is not None:
+        changes["footprint_cover_draws"] = args.footprint_cover
     if args.priors is not None:
         if not args.priors.exists():
             raise ValueError(f"no such priors file: {args.priors}")
