@@ -144,6 +144,11 @@ def explicit_stands(log_posterior: LogPosterior, x, side, rng) -> tuple[list, np
     return stands, full
 
 
+#: Side of the plots of :func:`footprint_cover`, in footprint diameters (4σf): the 3σf disc
+#: and every crown reaching into it lie inside.
+COVER_PLOT_DIAMETERS = 3.0
+
+
 def footprint_cover(log_posterior: LogPosterior, instrument, x, rng, draws) -> np.ndarray:
     """Draws of the footprint's own crown cover, a posterior-predictive quantity.
 
@@ -171,7 +176,7 @@ def footprint_cover(log_posterior: LogPosterior, instrument, x, rng, draws) -> n
     """
     out = np.full(x.shape[0], np.nan)
     pick = rng.choice(x.shape[0], size=min(int(draws), x.shape[0]), replace=False)
-    side = 3.0 * instrument.footprint_diameter_m
+    side = COVER_PLOT_DIAMETERS * instrument.footprint_diameter_m
     stands, _ = explicit_stands(log_posterior, x[pick], side, rng)
     sigma = instrument.footprint_sigma_m
     out[pick] = [footprint_crown_cover(stand, (side / 2, side / 2), sigma) for _, stand in stands]
