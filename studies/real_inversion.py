@@ -159,8 +159,8 @@ def statistics(records, instrument) -> dict:
         "p90_seconds": float(np.percentile([r["seconds"] for r in done], 90)) if done else None,
         "two_cohorts": int(sum(r.get("cohorts") == 2 for r in done)),
         "misfit_flagged": int(sum(r.get("predictive_p_value", 1.0) < 0.01 for r in done)),
-        "median_residual_scale": _median_of(done, "residual_scale"),
-        "p90_residual_scale": _median_of(done, "residual_scale", 90),
+        "median_residual_scale": _percentile_of(done, "residual_scale", 50),
+        "p90_residual_scale": _percentile_of(done, "residual_scale", 90),
     }
     for q, (name, key) in QUANTITIES.items():
         triples = [
@@ -249,6 +249,8 @@ def main(argv=None):
         help="write one summary of earlier runs (their --tag) instead of inverting",
     )  # fmt: skip
     args = parser.parse_args(argv)
+    if args.skip_shots < 0:
+        parser.error(f"--skip-shots must be ≥ 0, got {args.skip_shots}")
     if args.combine:
         return combine(args.combine, HERE / "output" / f"real_inversion{args.tag}")
     files = _files(args.data)
@@ -324,7 +326,8 @@ def _write_shots(out, records) -> None:
     (out / "shots.json").write_text(json.dumps(records, indent=1, default=_json))
 
 
-def _median_of(records, key, percentile=50):
+def _percentile_of(records, key, percentile):
+    """A percentile of the records' finite values of ``key``; None where none has one."""
     values = [r[key] for r in records if np.isfinite(r.get(key, np.nan))]
     return float(np.percentile(values, percentile)) if values else None
 
