@@ -260,6 +260,12 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
             f"{part['not_converged_flagged']}); median {_cell(part.get('median_seconds'))} s "
             f"a shot, 90th percentile {_cell(part.get('p90_seconds'))} s."
         )
+        if part.get("median_cpu_seconds") is not None:
+            text += (
+                f" CPU time of the inverting process (what one core of its own would take, "
+                f"whatever else shared the machine): median {_cell(part['median_cpu_seconds'])} "
+                f"s, 90th percentile {_cell(part.get('p90_cpu_seconds'))} s."
+            )
         if part.get("median_residual_scale") is not None:
             text += (
                 f" Misfit flagged on {part.get('misfit_flagged')}; residuals "
