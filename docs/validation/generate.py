@@ -210,6 +210,7 @@ def render_speed(record, figures: Path, key: str) -> str:
         [
             name,
             c["median_seconds"],
+            c.get("median_cpu_seconds"),
             c["within_target_fraction"],
             c["median_ms_per_step"],
             c["converged_fraction"],
@@ -217,12 +218,13 @@ def render_speed(record, figures: Path, key: str) -> str:
         ]
         for name, c in configs.items()
     ]
-    header = ["configuration", "median run (s)", "within 10 s", "ms a step", "converged", "runs"]
+    header = ["configuration", "median run (s)", "median CPU (s)", "within 10 s", "ms a step",
+              "converged", "runs"]  # fmt: skip
     text = table(header, rows) + "\n"
     for name, c in configs.items():
         shots = c.get("shots", [])
         if shots:
-            wanted = ("shot", "seconds", "steps", "max_tau", "converged")
+            wanted = ("shot", "seconds", "cpu_seconds", "steps", "max_tau", "converged")
             keys = [k for k in wanted if k in shots[0]]
             text += table(keys, [[r.get(k) for k in keys] for r in shots], f"runs of {name}")
             text += "\n"
