@@ -2,7 +2,7 @@
 
 :class:`WaveformSimulator` precomputes what depends only on the instrument and the
 accuracy settings (the truncation radius, the fine layers, the pulse kernel); a
-:class:`PreparedStand` holds per-stand work (stem search tree, crown extinction). Each
+:class:`PreparedStand` holds per-stand work (stem search, crown extinction). Each
 footprint then costs the crowns that reach it, the footprint sums of the gap profiles of
 its columns, exact at the fine-layer edges (:mod:`forward.column_kernel`, compiled in
 :mod:`forward.column_kernel_numba`), and one short convolution with the pulse.
@@ -55,7 +55,8 @@ class PreparedStand:
     stand: Stand
     extinction: np.ndarray
     max_radius: float
-    tree: cKDTree = field(repr=False)
+    # the stem search tree, built once a second footprint asks (see stems_within)
+    _search: dict = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def build(cls, stand: Stand, extinction_per_favd: float) -> "PreparedStand":
@@ -63,20 +64,28 @@ class PreparedStand:
         if not visible.all():
             stand = stand.subset(visible)
         radius = float(stand.crown_radius.max()) if stand.n_trees else 0.0
-        return cls(
-            stand=stand,
-            extinction=extinction_per_favd * stand.favd,
-            max_radius=radius,
-            tree=cKDTree(
-                np.column_stack([stand.x, stand.y]) if stand.n_trees else np.zeros((0, 2))
-            ),
-        )
+        return cls(stand=stand, extinction=extinction_per_favd * stand.favd, max_radius=radius)
+
+    def stems_within(self, cx, cy, reach) -> np.ndarray:
+        """Indices (ascending) of the stems within ``reach`` (m) of (cx, cy).
+
+        The first query scans every stem, which costs less than building a search tree;
+        the tree is built at the second, where the stand serves several footprints.
+        """
+        stand = self.stand
+        if "tree" not in self._search:
+            if not self._search.get("scanned"):
+                self._search["scanned"] = True
+                return np.flatnonzero(np.hypot(stand.x - cx, stand.y - cy) <= reach)
+            self._search["tree"] = cKDTree(np.column_stack([stand.x, stand.y]))
+        near = self._search["tree"].query_ball_point((cx, cy), reach)
+        return np.sort(np.asarray(near, np.intp))
 
     def crowns_near(self, cx, cy, radius, ground: Ground) -> CrownSet:
         """The crowns whose discs reach within ``radius`` (m) of (cx, cy), with their
         bases raised by the ground's height at their stems."""
         stand = self.stand
-        near = np.asarray(self.tree.query_ball_point((cx, cy), radius + self.max_radius), np.intp)
+        near = self.stems_within(cx, cy, radius + self.max_radius)
         dx, dy = stand.x[near] - cx, stand.y[near] - cy
         reach = np.hypot(dx, dy) < radius + stand.crown_radius[near]
         near, dx, dy = near[reach], dx[reach], dy[reach]

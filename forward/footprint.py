@@ -218,7 +218,7 @@ def _crossings(sim, prepared, cx, cy, ground):
     """Quadrature columns of all crowns that reach the truncated footprint."""
     stand = prepared.stand
     reach = sim.footprint_radius + prepared.max_radius
-    near = np.asarray(prepared.tree.query_ball_point((cx, cy), reach), np.intp)
+    near = prepared.stems_within(cx, cy, reach)
     if near.size == 0:  # bare ground: nothing to intersect
         empty, none = np.zeros(0), np.zeros(0, np.intp)
         found = CrownCrossings(np.zeros((0, 2)), empty, none, none, empty)

@@ -165,7 +165,7 @@ class HeightFamily:
     ----------
     name : str
     dist : scipy.stats.rv_continuous
-        The scipy distribution (the reference, and what sampling uses).
+        The scipy distribution (the reference the closed forms are tested against).
     arguments : callable
         ``arguments(mean, sd, truncation) -> (shape_args, loc, scale)`` for ``dist``
         (array-aware).

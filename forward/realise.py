@@ -15,6 +15,7 @@ drawn independently of the positions (independent marks).
 import numpy as np
 
 from .crowns import SHAPE_NAMES
+from .height_families import HEIGHT_DISTRIBUTIONS
 from .scene import Ground, UniformUnderstory
 from .stand import Stand
 
@@ -77,20 +78,23 @@ def draw_heights(params, n, rng):
     -------
     height : array (n,) (m)
         Each tree's cohort drawn by its weight, then its height from the cohort's
-        distribution.
+        distribution by inverse CDF (the family's closed-form quantile function; for the
+        truncated-normal and Weibull families the very draws scipy's ``rvs`` makes from
+        the same generator, without its overhead).
     shape : array of int8 (n,)
         Shape codes drawn from the cohort's mix.
     """
-    cohorts = params.cohorts()
-    weights = np.array([w for w, _, _ in cohorts])
+    family = HEIGHT_DISTRIBUTIONS[params.height_family]
+    cohorts = params.cohort_laws()
+    weights = np.array([w for w, _, _, _ in cohorts])
     which = rng.choice(len(cohorts), size=n, p=weights / weights.sum())
     height = np.empty(n)
     shape = np.empty(n, np.int8)
-    for c, (_, dist, mix) in enumerate(cohorts):
+    for c, (_, mean, sd, mix) in enumerate(cohorts):
         sel = which == c
         k = int(sel.sum())
         if k:
-            height[sel] = dist.rvs(size=k, random_state=rng)
+            height[sel] = family.ppf(rng.uniform(size=k), mean, sd, params.height_truncation)
             shape[sel] = rng.choice(len(SHAPE_NAMES), size=k, p=mix / mix.sum())
     return height, shape
 

@@ -186,6 +186,26 @@ class StandParams:
         """Stem density (stems/m²)."""
         return self.density / 1e4
 
+    def cohort_laws(self):
+        """The height laws of the stand's cohorts with trees.
+
+        Returns
+        -------
+        list of (float, float, float, array)
+            (weight, height mean (m), height sd (m), shape fractions) of each cohort with
+            weight > 0, in :attr:`height_family`.
+        """
+        both = (
+            (1 - self.cohort2_fraction, self.height_mean, self.height_sd, self.shape_mix),
+            (
+                self.cohort2_fraction,
+                self.cohort2_height_mean,
+                self.cohort2_height_sd,
+                self.cohort2_shape_mix,
+            ),
+        )
+        return [(w, mean, sd, np.asarray(mix)) for w, mean, sd, mix in both if w > 0]
+
     def cohorts(self):
         """The stand's cohorts with trees.
 
@@ -194,20 +214,10 @@ class StandParams:
         list of (float, scipy.stats.rv_frozen, array)
             (weight, height distribution, shape fractions) of each cohort with weight > 0.
         """
-        out = []
-        for weight, mean, sd, mix in (
-            (1 - self.cohort2_fraction, self.height_mean, self.height_sd, self.shape_mix),
-            (
-                self.cohort2_fraction,
-                self.cohort2_height_mean,
-                self.cohort2_height_sd,
-                self.cohort2_shape_mix,
-            ),
-        ):
-            if weight > 0:
-                dist = height_distribution(self.height_family, mean, sd, self.height_truncation)
-                out.append((weight, dist, np.asarray(mix)))
-        return out
+        return [
+            (w, height_distribution(self.height_family, mean, sd, self.height_truncation), mix)
+            for w, mean, sd, mix in self.cohort_laws()
+        ]
 
     def favd_by_shape(self) -> np.ndarray:
         """FAVD of each shape.

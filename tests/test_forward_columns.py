@@ -277,3 +277,21 @@ def test_ground_columns_are_closer_and_reach_further():
     assert accuracy.column_spacing_for(5.5, 2.0, shapes=[cones]) > accuracy.column_spacing_for(
         5.5, 2.0, shapes=[cones, fw.SHAPE_NAMES.index("cylinder")]
     )
+
+
+def test_stem_search_scans_first_then_uses_a_tree(gedi):
+    """A stand serving one footprint is scanned; one serving several builds a tree. Both
+    find exactly the stems a direct distance test finds, and the waveforms of a footprint
+    simulated first and again agree to rounding."""
+    stand = overlapping_stand(np.random.default_rng(6), 400, 40.0)
+    sim = fw.WaveformSimulator(gedi)
+    prepared = sim.prepare(stand)
+    centres = [(0.0, 0.0), (7.5, -12.0), (0.0, 0.0)]
+    for cx, cy in centres:
+        expected = np.flatnonzero(np.hypot(stand.x - cx, stand.y - cy) <= 15.0)
+        np.testing.assert_array_equal(prepared.stems_within(cx, cy, 15.0), expected)
+    assert "tree" in prepared._search
+    heights = np.arange(-5.0, 20.0, gedi.bin_height)
+    scanned = sim.simulate(sim.prepare(stand), heights=heights).samples
+    searched = sim.simulate(prepared, heights=heights).samples
+    np.testing.assert_allclose(scanned, searched, rtol=1e-12, atol=1e-15)
