@@ -182,6 +182,28 @@ def test_map_and_laplace_covariance_match_the_closed_form():
     np.testing.assert_allclose(estimate.covariance * np.outer(scale, scale), toy.cov, rtol=0.05)
 
 
+def test_a_seed_reaches_an_optimum_the_prior_draws_miss():
+    """A broad hill and, far from it, a narrow higher peak that no screened prior draw
+    climbs: seeded near the peak (as a nested model's optimum is), the search ends on it;
+    a seed row with a non-finite coordinate is left out."""
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(2))
+    peak = np.array([15.0, -15.0])
+
+    def log_prob(u):
+        x, log_jac = space.from_unbounded(u)
+        hill = -0.5 * np.sum((x / 4.0) ** 2, axis=1)
+        spike = 10.0 - 0.5 * np.sum(((x - peak) / 0.05) ** 2, axis=1)
+        return np.logaddexp(hill, spike) + log_jac
+
+    settings = SamplerSettings(candidates=64, starts=2, polish=1)
+    plain = find_map(log_prob, space, np.random.default_rng(1), settings)
+    seed = space.to_unbounded(np.array([peak + 0.1, [np.nan, 0.0]]))
+    seeded = find_map(log_prob, space, np.random.default_rng(1), settings, seeds=seed)
+    at = lambda estimate: space.from_unbounded(estimate.u[None, :])[0][0]
+    assert np.linalg.norm(at(plain) - peak) > 5.0
+    np.testing.assert_allclose(at(seeded), peak, atol=0.01)
+
+
 def test_short_run_is_flagged_not_converged():
     rng = np.random.default_rng(5)
     space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))

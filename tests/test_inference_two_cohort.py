@@ -117,3 +117,28 @@ def test_settings_choose_the_cohorts_and_refuse_what_cannot_be_built(tmp_path):
     priors = tmp_path / "priors.toml"
     priors.write_text('[cohort2_top_ratio]\nkind = "uniform"\nlower = 0.2\nupper = 0.6\n')
     assert InversionSettings.from_priors_file(priors).cohorts == 2
+
+
+def test_the_nested_start_is_the_one_cohort_fit_in_the_two_cohort_space(rng):
+    """The one-cohort point mapped into the two-cohort space (an empty lower storey) keeps
+    the one-cohort log-likelihood: the two-cohort search starts no worse than it."""
+    from dataclasses import replace
+
+    from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
+    from lidarinv.inference.invert import nested_start
+    from lidarinv.inference.problem import problem_for_shot
+    from lidarinv.inference.shot import Shot
+
+    settings = InversionSettings(discrepancy_model="observed")
+    shot = Shot.from_observation(synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng), settings)
+    one = problem_for_shot(shot, replace(settings, cohorts=1))
+    two = problem_for_shot(shot, replace(settings, cohorts=2))
+    u1 = one.space.to_unbounded(one.space.sample_prior(rng, 8))
+    u1 = u1[np.isfinite(one.log_posterior(u1)[:, 0])]
+    u2 = np.vstack([nested_start(one.space, u, two.space) for u in u1])
+    like = [
+        p.log_posterior.evaluate(p.space.from_unbounded(u)[0]).log_likelihood
+        for p, u in ((one, u1), (two, u2))
+    ]
+    assert u1.shape[0] >= 4
+    np.testing.assert_allclose(like[1], like[0], atol=0.2)  # 0.1 % of the stems below

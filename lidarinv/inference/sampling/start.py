@@ -65,7 +65,7 @@ def _batched_objective(log_prob, step=1e-5):
     return objective, counter
 
 
-def find_map(log_prob, space, rng, settings) -> MapEstimate:
+def find_map(log_prob, space, rng, settings, seeds=None) -> MapEstimate:
     """Maximise ``log_prob`` (of unbounded coordinates): the best ``starts`` of
     ``candidates`` prior draws run ``screen_iterations`` of L-BFGS-B each, and the best
     ``polish`` of those run on to convergence; the runs of each stage go in lockstep,
@@ -80,6 +80,9 @@ def find_map(log_prob, space, rng, settings) -> MapEstimate:
     rng : numpy.random.Generator
     settings : SamplerSettings
         ``candidates``, ``starts``, ``screen_iterations`` and ``polish``.
+    seeds : array (k, ndim), optional
+        Unbounded points screened beside the prior draws' best ``starts`` (e.g. a nested
+        model's optimum); rows with a non-finite coordinate are left out.
 
     Returns
     -------
@@ -94,9 +97,13 @@ def find_map(log_prob, space, rng, settings) -> MapEstimate:
     order = np.argsort(-np.where(np.isfinite(scores), scores, -np.inf))
     objective, counter = _batched_objective(log_prob)
     best = MapEstimate(draws[order[0]], float(scores[order[0]]), False, draws.shape[0])
+    starts = draws[order[: settings.starts]]
+    if seeds is not None:
+        seeds = np.atleast_2d(np.asarray(seeds, float))
+        starts = np.vstack([starts, seeds[np.all(np.isfinite(seeds), axis=1)]])
     screened = minimize_in_lockstep(
         objective,
-        draws[order[: settings.starts]],
+        starts,
         method="L-BFGS-B",
         options={"maxiter": settings.screen_iterations},
     )
