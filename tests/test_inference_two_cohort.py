@@ -1,14 +1,21 @@
-"""The two-storey stand mapping: its limits, its mixture identities, its settings."""
+"""The two-storey stand mapping: its limits, its mixture identities, its settings, and
+the one-cohort optimum as a start for its MAP search."""
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from forward import poisson_stand
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings
+from lidarinv.inference.invert import nested_start
 from lidarinv.inference.model.parameters import default_space
 from lidarinv.inference.model.priors import Uniform
 from lidarinv.inference.model.stand import StandMapping, default_template
 from lidarinv.inference.model.two_cohort import COHORT2, TwoCohortMapping
+from lidarinv.inference.problem import problem_for_shot
+from lidarinv.inference.shot import Shot
 
 N = 6
 
@@ -122,13 +129,6 @@ def test_settings_choose_the_cohorts_and_refuse_what_cannot_be_built(tmp_path):
 def test_the_nested_start_is_the_one_cohort_fit_in_the_two_cohort_space(rng):
     """The one-cohort point mapped into the two-cohort space (an empty lower storey) keeps
     the one-cohort log-likelihood: the two-cohort search starts no worse than it."""
-    from dataclasses import replace
-
-    from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
-    from lidarinv.inference.invert import nested_start
-    from lidarinv.inference.problem import problem_for_shot
-    from lidarinv.inference.shot import Shot
-
     settings = InversionSettings(discrepancy_model="observed")
     shot = Shot.from_observation(synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng), settings)
     one = problem_for_shot(shot, replace(settings, cohorts=1))
