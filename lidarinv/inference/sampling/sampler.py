@@ -104,7 +104,7 @@ class SamplerSettings:
     polish: int = 3
     ball: float = 1.0
     mode_window: float = 0.0
-    moves: tuple = (("de", 0.4), ("ensemble-t", 0.3), ("chain-t", 0.3))
+    moves: tuple = (("de", 0.2), ("ensemble-t", 0.5), ("chain-t", 0.3))
     fit_steps: tuple = (100, 200, 400, 800, 1600, 3200)
     fit_fraction: float = 0.25
 
@@ -355,7 +355,7 @@ def run_sampler(
         flags.append(f"low acceptance in {int(np.sum(acceptance < 0.05))} walker(s)")
     tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else sampler.iteration / 10
     burn = burn_in(sampler.iteration, tau, s.burn_taus, floor)
-    thin = max(1, int(tau_max / 2))
+    thin = max(1, int(tau_max))
     return SamplerRun(
         chain=sampler.get_chain(),
         log_prob=sampler.get_log_prob(),
