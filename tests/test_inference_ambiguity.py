@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from forward.pulse import GaussianPulse
+from forward.pulse import GaussianPulse, MeasuredPulse
 from lidarinv.inference.ambiguity import MASS_WINDOW, competing_grounds, describe, pulse_width_m
 from lidarinv.inference.model.parameters import default_space
 from lidarinv.inference.sampling.start import MapEstimate, laplace_covariance
@@ -51,3 +51,13 @@ def test_grounds_within_a_pulse_width_are_one_explanation(nuisance_priors):
     assert pulse_width_m(GaussianPulse(4.0)) == pytest.approx(
         2.563 * GaussianPulse(4.0).sigma_m, rel=1e-3
     )
+
+
+def test_a_measured_pulse_is_as_wide_as_its_central_area_not_its_record():
+    # a Gaussian of 4 ns FWHM sampled every 0.25 ns over a 64 ns record (9.6 m of offsets)
+    times = np.arange(-32.0, 32.0, 0.25)
+    sigma_ns = 4.0 / (2.0 * np.sqrt(2.0 * np.log(2.0)))
+    measured = MeasuredPulse(np.exp(-0.5 * (times / sigma_ns) ** 2), 0.25)
+    assert pulse_width_m(measured) == pytest.approx(pulse_width_m(GaussianPulse(4.0)), rel=2e-3)
+    low, high = measured.support(0.1)
+    assert high - low > 5.0 * pulse_width_m(measured)

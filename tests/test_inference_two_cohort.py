@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from forward import poisson_stand
-from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
+from lidarinv.examples import SYNTHETIC_SHOTS, ShotRecipe, synthetic_shot
 from lidarinv.inference import InversionSettings
-from lidarinv.inference.invert import nested_start
+from lidarinv.inference.invert import STOREYS_RESOLVED_PULSE_WIDTHS, choose_cohorts, nested_start
 from lidarinv.inference.model.parameters import default_space
 from lidarinv.inference.model.priors import Uniform
 from lidarinv.inference.model.stand import StandMapping, default_template
@@ -142,3 +142,15 @@ def test_the_nested_start_is_the_one_cohort_fit_in_the_two_cohort_space(rng):
     ]
     assert u1.shape[0] >= 4
     np.testing.assert_allclose(like[1], like[0], atol=0.2)  # 0.1 % of the stems below
+
+
+def test_a_canopy_too_short_for_two_storeys_is_searched_with_one_cohort(rng):
+    """A 3 m shrub canopy spans fewer pulse widths than two storeys and a ground need:
+    the two-cohort model is not searched, and the choice says why."""
+    short = replace(SYNTHETIC_SHOTS["gedi-mixed"].params, height_mean=2.5, height_sd=0.3)
+    obs = synthetic_shot(ShotRecipe(short), rng)
+    settings = InversionSettings(discrepancy_model="observed")
+    problem, _, choice = choose_cohorts(obs, settings, rng)
+    assert choice["chosen"] == 1 and list(choice["bic"]) == [1] and not choice["undecided"]
+    assert 0.0 < choice["canopy_extent_m"] < STOREYS_RESOLVED_PULSE_WIDTHS * choice["pulse_width_m"]
+    assert "cohort2_fraction" not in problem.space.names

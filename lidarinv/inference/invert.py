@@ -37,6 +37,12 @@ NESTED_SEARCH_STARTS = 0.5
 #: factor under about e (Kass & Raftery 1995: "not worth more than a bare mention").
 BIC_UNDECIDED = 2.0
 
+#: Pulse widths (:func:`.ambiguity.pulse_width_m`) a shot's canopy return must span above
+#: its ground for two storeys to be told apart from one: the ground's, a lower storey's and
+#: an upper storey's returns each a pulse width apart (returns closer than that merge).
+#: A shorter canopy keeps one cohort, whose understory already holds a low layer.
+STOREYS_RESOLVED_PULSE_WIDTHS = 3.0
+
 
 def invert_shot(
     observation: Observation,
@@ -159,7 +165,9 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
     model nests the one-cohort one (:data:`.model.two_cohort.EMPTY_LOWER_STOREY`), so its
     search starts from the one-cohort optimum as well as from half as many prior draws
     (:data:`NESTED_SEARCH_STARTS`): its optimum is then never far below the nested one's,
-    and the search costs less.
+    and the search costs less. A canopy return that spans fewer than
+    :data:`STOREYS_RESOLVED_PULSE_WIDTHS` pulse widths above the ground cannot show two
+    storeys, and keeps one cohort without the second search.
 
     Parameters
     ----------
@@ -175,12 +183,17 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
     estimate : MapEstimate
         Its MAP search, for the discrepancy's simulation.
     choice : dict
-        ``chosen`` (1 or 2), ``map_log_likelihood`` and ``bic`` per model, and
-        ``undecided``: the BICs differ by less than :data:`BIC_UNDECIDED`.
+        ``chosen`` (1 or 2), ``map_log_likelihood`` and ``bic`` per model searched,
+        ``undecided``: the BICs differ by less than :data:`BIC_UNDECIDED`, and
+        ``canopy_extent_m`` and ``pulse_width_m``, the shot's signal start above its
+        ground and its pulse's width (m), which decide whether two storeys are searched.
     """
     shot, candidates = Shot.from_observation(observation, settings), {}  # analysed once
     search, seeds = settings.sampler, None
-    for cohorts in (1, 2):
+    extent = float(shot.analysis.signal_start - shot.analysis.ground)
+    width = pulse_width_m(shot.instrument.pulse)
+    resolved = extent >= STOREYS_RESOLVED_PULSE_WIDTHS * width
+    for cohorts in (1, 2) if resolved else (1,):
         problem = problem_for_shot(shot, replace(settings, cohorts=cohorts))
         post, space = problem.log_posterior, problem.space
         if cohorts == 2:
@@ -199,7 +212,9 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
         "chosen": chosen,
         "map_log_likelihood": {k: c[2] for k, c in candidates.items()},
         "bic": bic,
-        "undecided": bool(abs(bic[2] - bic[1]) < BIC_UNDECIDED),
+        "undecided": bool(resolved and abs(bic[2] - bic[1]) < BIC_UNDECIDED),
+        "canopy_extent_m": extent,
+        "pulse_width_m": width,
     }
     return candidates[chosen][0], candidates[chosen][1], choice
 

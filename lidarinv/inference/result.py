@@ -173,8 +173,7 @@ class InversionResult:
                 f"residuals {d.get('residual_scale', np.nan):.2f}× the modelled scatter"
             )
         if "cohorts" in d:
-            bic = ", ".join(f"{k} cohort(s) {v:.1f}" for k, v in d["cohorts"]["bic"].items())
-            lines.append(f"stand model: {d['cohorts']['chosen']} cohort(s), by BIC ({bic})")
+            lines.append(_stand_model_line(d["cohorts"]))
         lines += [f"warning: {flag}" for flag in self.flags]
         return "\n".join(lines)
 
@@ -318,6 +317,19 @@ class InversionResult:
             if name not in handle:
                 raise ValueError(f"{path}: no posterior group {name!r} (have {list(handle)})")
             return cls.read(handle[name])
+
+
+def _stand_model_line(choice) -> str:
+    """The summary's line on the stand model :func:`.invert.choose_cohorts` chose."""
+    bic = ", ".join(f"{k} cohort(s) {v:.1f}" for k, v in choice["bic"].items())
+    line = f"stand model: {choice['chosen']} cohort(s), by BIC ({bic})"
+    if len(choice["bic"]) == 1 and "canopy_extent_m" in choice:
+        line = (
+            f"stand model: {choice['chosen']} cohort: the canopy return spans "
+            f"{choice['canopy_extent_m']:.1f} m, too few pulse widths "
+            f"({choice['pulse_width_m']:.1f} m) for two storeys"
+        )
+    return line
 
 
 def _jsonable(value):
