@@ -324,10 +324,10 @@ def _stand_model_line(choice) -> str:
     bic = ", ".join(f"{k} cohort(s) {v:.1f}" for k, v in choice["bic"].items())
     line = f"stand model: {choice['chosen']} cohort(s), by BIC ({bic})"
     if len(choice["bic"]) == 1 and "canopy_extent_m" in choice:
+        extent, width = choice["canopy_extent_m"], choice["pulse_width_m"]
         line = (
-            f"stand model: {choice['chosen']} cohort: the canopy return spans "
-            f"{choice['canopy_extent_m']:.1f} m, too few pulse widths "
-            f"({choice['pulse_width_m']:.1f} m) for two storeys"
+            f"stand model: {choice['chosen']} cohort: the canopy return spans {extent:.1f} m, "
+            f"{extent / width:.1f} pulse widths of {width:.1f} m, too short for two storeys"
         )
     return line
 
