@@ -321,15 +321,14 @@ class InversionResult:
 
 def _stand_model_line(choice) -> str:
     """The summary's line on the stand model :func:`.invert.choose_cohorts` chose."""
-    bic = ", ".join(f"{k} cohort(s) {v:.1f}" for k, v in choice["bic"].items())
-    line = f"stand model: {choice['chosen']} cohort(s), by BIC ({bic})"
-    if len(choice["bic"]) == 1 and "canopy_extent_m" in choice:
+    if len(choice["bic"]) == 1 and "canopy_extent_m" in choice:  # two storeys not searched
         extent, width = choice["canopy_extent_m"], choice["pulse_width_m"]
-        line = (
+        return (
             f"stand model: {choice['chosen']} cohort: the canopy return spans {extent:.1f} m, "
             f"{extent / width:.1f} pulse widths of {width:.1f} m, too short for two storeys"
         )
-    return line
+    bic = ", ".join(f"{k} cohort(s) {v:.1f}" for k, v in choice["bic"].items())
+    return f"stand model: {choice['chosen']} cohort(s), by BIC ({bic})"
 
 
 def _jsonable(value):
