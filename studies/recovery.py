@@ -54,6 +54,7 @@ from lidarinv.inference import (  # noqa: E402
     build_problem,
     invert_shot,
 )
+from lidarinv.inference.hidden_ground import HIDDEN_GROUND_FLAG  # noqa: E402
 from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS, SIMULATED  # noqa: E402
 from lidarinv.inference.model.parameters import NUISANCE, STRUCTURE, default_space  # noqa: E402
 from lidarinv.inference.model.priors import Uniform  # noqa: E402
@@ -319,6 +320,17 @@ def summarise(rows, by_kind=True):
             out["quantities"][name]["posterior_rmse_same_shots"] = float(
                 np.sqrt(np.mean((m - t)[keep] ** 2))
             )
+    hidden = [any(f.startswith(HIDDEN_GROUND_FLAG) for f in r.get("flags", [])) for r in good]
+    out["hidden_ground_flagged"] = int(sum(hidden))
+    if "ground_elevation" in out["quantities"]:  # the misses the flag explains
+        missed = [
+            not (r["posterior"]["ground_elevation"]["p05"] <= r["truth"]["ground_elevation"]
+                 <= r["posterior"]["ground_elevation"]["p95"])
+            for r in good
+        ]  # fmt: skip
+        out["quantities"]["ground_elevation"]["missed_90_hidden_ground_flagged"] = int(
+            sum(m and h for m, h in zip(missed, hidden))
+        )
     gap = np.array([r["log_prob"]["truth"] - r["log_prob"]["best_in_chain"] for r in good])
     known = np.isfinite(gap)
     out["chain_below_truth_by_5_fraction"] = (

@@ -148,3 +148,20 @@ def test_out_of_family_rows_are_summarised_per_stand_kind(recovery):
     assert pooled == pytest.approx(np.mean([emergent["quantities"]["cover"]["coverage_90"],
                                             sparse["quantities"]["cover"]["coverage_90"]]))  # fmt: skip
     assert "by_kind" not in sparse
+
+
+def test_ground_misses_under_a_hidden_ground_flag_are_counted(recovery):
+    def row(truth, flags):
+        posterior = {"p05": -0.1, "p16": -0.05, "median": 0.0, "p84": 0.05, "p95": 0.1}
+        return {
+            "truth": {"ground_elevation": truth}, "posterior": {"ground_elevation": posterior},
+            "flags": flags, "direct": {"status": "no ground peak"}, "converged": True,
+            "start_modes": 1, "seconds": 1.0, "log_prob": {"truth": 0.0, "best_in_chain": 0.0},
+        }  # fmt: skip
+
+    hidden = "ground may be hidden: the lowest return …"
+    rows = [row(-20.0, [hidden]), row(-20.0, []), row(0.0, [hidden]), row(0.0, [])]
+    out = recovery.summarise(rows, by_kind=False)
+    assert out["hidden_ground_flagged"] == 2
+    ground = out["quantities"]["ground_elevation"]
+    assert ground["coverage_90"] == 0.5 and ground["missed_90_hidden_ground_flagged"] == 1

@@ -18,6 +18,7 @@ from lidarinv.observe.observation import Observation
 from .ambiguity import competing_grounds, pulse_width_m
 from .ambiguity import describe as describe_competing
 from .collect import collect_result
+from .hidden_ground import hidden_ground_note
 from .likelihood.covariance import covariance_obstacle
 from .likelihood.discrepancy import SIMULATED
 from .model.two_cohort import EMPTY_LOWER_STOREY
@@ -123,6 +124,9 @@ def prepare_problem(
     else:
         problem, estimate = build_problem(observation, settings), None
     settings = problem.settings
+    hidden = hidden_ground_note(problem.shot)
+    if hidden is not None:
+        report["notes"].append(hidden)
     pilot = problem.log_posterior  # the posterior the MAP search maximised
     if settings.discrepancy_model == SIMULATED:
         obstacle = covariance_obstacle(problem.window, settings.shot_factor)

@@ -62,6 +62,9 @@ class ShotAnalysis:
         Highest and lowest bins of the signal.
     ground, ground_uncertainty : float (m)
         Centre of the lowest mode and its 1-σ uncertainty.
+    ground_width : float (m)
+        Half width at half maximum of the lowest mode's lower flank on the smoothed
+        waveform, as a Gaussian σ.
     n_modes : int
         Significant modes in the signal (1: a lone ground peak).
     canopy_height : float (m)
@@ -96,6 +99,7 @@ class ShotAnalysis:
     signal_end: float = np.nan
     ground: float = np.nan
     ground_uncertainty: float = np.nan
+    ground_width: float = np.nan
     n_modes: int = 0
     canopy_height: float = np.nan
     rh: np.ndarray | None = None
@@ -304,6 +308,7 @@ def analyse(
     if peak is None:
         return _stop(result, "no ground peak", "no significant mode above the back floor")
     result.ground, result.ground_uncertainty = peak.position, peak.uncertainty
+    result.ground_width = peak.width
     result.n_modes = peak.n_modes
     result.canopy_height = extent.start - peak.position
     _geolocate(result, obs)
