@@ -7,7 +7,8 @@ puts the ground at the crown base, and the heights come out short by the depth o
 hidden part. A ground return has a width the model bounds: the pulse, broadened at most as
 far as the broadening prior allows, then smoothed as the analysis smooths. A lowest mode
 whose lower flank is wider than that widest ground return holds vegetation below its
-peak, and the ground may lie lower still. The inversion keeps the ground at the mode (a
+peak, and the ground may lie lower still; or the terrain within the footprint is steeper
+or rougher than the broadening prior allows. The inversion keeps the ground at the mode (a
 ground prior that reached down by a canopy's depth let a lone ground peak on sloped
 terrain turn into a tall closed canopy) and says so in the result's flags.
 """
@@ -84,7 +85,8 @@ def hidden_ground_note(shot) -> str | None:
         return None
     return (
         f"{HIDDEN_GROUND_FLAG}: the lowest return ({analysis.ground:.2f} m) spreads "
-        f"{width:.2f} m (σ) below its peak, more than a ground return can ({widest:.2f} m); "
-        "it may be the base of a closed canopy over a ground lost in the noise, and then "
-        "the ground lies lower and the heights are short by the canopy below it"
+        f"{width:.2f} m (σ) below its peak, more than a ground return can ({widest:.2f} m): "
+        "the base of a closed canopy over a ground lost in the noise (the ground then lies "
+        "lower and the heights are short), or terrain steeper or rougher than the "
+        "broadening prior allows"
     )
