@@ -69,6 +69,15 @@ def render_coverage(record, figures: Path, key: str) -> str:
         f"{_cell(s.get('median_seconds_per_shot'))} s a shot. Truths drawn from "
         f"``{s.get('truth', '?')}``; explicit stands: {_cell(s.get('explicit_realisations'))}.\n\n"
     )
+    ground = quantities.get("ground_elevation", {})
+    if "missed_90_hidden_ground_flagged" in ground:
+        missed = round((1.0 - ground["coverage_90"]) * ground["n"])
+        text += (
+            f'{s["hidden_ground_flagged"]} shots are flagged "ground may be hidden" (their '
+            "lowest return is wider than a ground return); "
+            f"{ground['missed_90_hidden_ground_flagged']} of the {missed} ground elevations "
+            "outside their 90 % interval carry that flag.\n\n"
+        )
     if ranges:
         text += (
             "A coverage is consistent with its nominal level when it lies in the binomial "
