@@ -22,6 +22,7 @@ from .hidden_ground import hidden_ground_note
 from .likelihood.covariance import covariance_obstacle
 from .likelihood.discrepancy import SIMULATED
 from .model.two_cohort import EMPTY_LOWER_STOREY
+from .model_error import describe_floor, shot_floor
 from .problem import InversionProblem, build_problem, fixed_discrepancy, problem_for_shot
 from .realisations import realisation_covariance
 from .result import InversionResult
@@ -135,13 +136,17 @@ def prepare_problem(
                 problem.log_posterior, problem.instrument, rng, settings.realisations,
                 settings.sampler, estimate,
             )  # fmt: skip
-            floor = settings.realisations.instrument_floor
-            if floor > 0:  # the instrument model's own error, on the diagonal
-                variance = fixed_discrepancy(problem.shot, replace(settings, discrepancy=floor))
-                covariance = covariance + np.diag(variance)
-            problem = problem.with_fixed_discrepancy(covariance)
             estimate = simulated.pop("estimate")
             report.update(simulated)
+            least = settings.realisations.instrument_floor
+            if least > 0:  # the instrument model's own error, on the diagonal
+                unit = fixed_discrepancy(problem.shot, replace(settings, discrepancy=1.0))
+                floor = shot_floor(pilot, estimate, covariance, unit, least)
+                covariance = covariance + floor**2 * np.diag(unit)
+                report["instrument_floor"] = floor
+                if floor > least:
+                    report["notes"].append(describe_floor(floor, least))
+            problem = problem.with_fixed_discrepancy(covariance)
             if not simulated["map_converged"]:
                 report["notes"].append("MAP optimiser did not report convergence")
         else:
@@ -256,7 +261,7 @@ def _invert(observation, settings, rng, progress, backend_path) -> InversionResu
     if "seconds" in report:
         run.seconds["discrepancy"] = report["seconds"]
     result = collect_result(problem, run, rng)
-    for key in ("cohorts", "competing_grounds"):
+    for key in ("cohorts", "competing_grounds", "instrument_floor"):
         if key in report:
             result.diagnostics[key] = report[key]
     return result
