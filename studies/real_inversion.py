@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lidarinv.inference.model_error import MODEL_ERROR_FLAG
 from lidarinv.io import iter_observations, read_gedi_l2a, read_gedi_l2b, read_lvis_l2
 from lidarinv.observe import Observation, analyse
 
@@ -113,6 +114,7 @@ def invert_one(job):
     record["cohorts"] = result.settings["cohorts"]
     record["predictive_p_value"] = result.diagnostics["predictive_p_value"]
     record["residual_scale"] = result.diagnostics.get("residual_scale", np.nan)
+    record["instrument_floor"] = float(result.diagnostics.get("instrument_floor", np.nan))
     record["posterior"] = {}
     names = {"ground": "ground_elevation", "rh98": "rh98", "rh98_product": "rh98_product",
              "rh98_footprint": "rh98_footprint", "cover": _cover_name(result)}  # fmt: skip
@@ -163,6 +165,10 @@ def statistics(records, instrument) -> dict:
         "p90_cpu_seconds": _percentile_of(done, "cpu_seconds", 90),
         "two_cohorts": int(sum(r.get("cohorts") == 2 for r in done)),
         "misfit_flagged": int(sum(r.get("predictive_p_value", 1.0) < 0.01 for r in done)),
+        "model_error_raised": int(
+            sum(any(f.startswith(MODEL_ERROR_FLAG) for f in r["flags"]) for r in done)
+        ),
+        "median_instrument_floor": _percentile_of(done, "instrument_floor", 50),
         "median_residual_scale": _percentile_of(done, "residual_scale", 50),
         "p90_residual_scale": _percentile_of(done, "residual_scale", 90),
     }

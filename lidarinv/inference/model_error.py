@@ -15,6 +15,9 @@ import numpy as np
 
 from .likelihood.gaussian import model_moments
 
+#: How the result's flag begins where the error was raised.
+MODEL_ERROR_FLAG = "model error raised"
+
 #: The largest per-bin sd of the instrument model's error, as a fraction of the signal.
 LARGEST_FLOOR = 2.0
 
@@ -98,7 +101,7 @@ def shot_floor(pilot, estimate, covariance, unit_variance, floor) -> float:
 def describe_floor(floor, least) -> str:
     """The result's flag where the instrument model's error was raised above η₀."""
     return (
-        f"model error raised: the residuals at the MAP exceed the noise and the simulated "
+        f"{MODEL_ERROR_FLAG}: the residuals at the MAP exceed the noise and the simulated "
         f"discrepancy, so the instrument model's error is taken as {100 * floor:.0f} % of "
         f"the signal per bin instead of {100 * least:.0f} % (the model does not explain "
         "part of the waveform; see the residual panel)"
