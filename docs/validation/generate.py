@@ -283,11 +283,12 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
                 f"{_cell(part['median_residual_scale'])}× the modelled scatter at the median "
                 f"shot, {_cell(part.get('p90_residual_scale'))}× at the 90th percentile."
             )
-        if part.get("model_error_raised") is not None:
+        floor = part.get("median_instrument_floor")
+        if part.get("model_error_raised") or floor is not None:  # runs that had the raise
             text += (
                 f" The instrument model's error was raised above its least value on "
-                f"{part['model_error_raised']} shots (median η "
-                f"{_cell(part.get('median_instrument_floor'))} of the signal per bin)."
+                f"{part['model_error_raised']} shots"
+                + (f" (median η {_cell(floor)} of the signal per bin)." if floor else ".")
             )
         text += "\n\n"
         header = ["quantity", "shots", "median (posterior − product)", "median |d|",
