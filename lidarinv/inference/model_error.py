@@ -69,8 +69,8 @@ def shot_floor(pilot, estimate, covariance, unit_variance, floor) -> float:
     ----------
     pilot : LogPosterior
         The posterior the MAP search maximised.
-    estimate : MapEstimate
-        Its MAP (unbounded coordinates).
+    estimate : MapEstimate or None
+        Its MAP (unbounded coordinates); η₀ where there is none.
     covariance : array (bins, bins) (DN²)
         The simulated discrepancy.
     unit_variance : array (bins,) (DN²)
@@ -82,6 +82,8 @@ def shot_floor(pilot, estimate, covariance, unit_variance, floor) -> float:
     -------
     float
     """
+    if estimate is None:
+        return float(floor)
     space, like = pilot.space, pilot.likelihood
     x, _ = space.from_unbounded(np.asarray(estimate.u, float)[None, :])
     terms = pilot.evaluate(x, keep_signal=True)
