@@ -58,7 +58,8 @@ class RealisationSettings:
         ``observed`` model) added to the diagonal of the simulated covariance: the error
         of the instrument model itself (the shape of the measured pulse, what widens a
         real ground return), which realisations drawn from the same model cannot hold.
-        0 for none.
+        The least value: raised per shot where its residuals at the MAP call for more
+        (:mod:`.model_error`). 0 for none.
     """
 
     count: int = 64
