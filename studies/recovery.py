@@ -234,11 +234,12 @@ def truth_log_prob(obs, settings) -> float:
 QUANTILE_KEYS = ("p05", "p16", "median", "p84", "p95")
 
 
+def _inside(row, name, lo, hi) -> bool:
+    return row["posterior"][name][lo] <= row["truth"][name] <= row["posterior"][name][hi]
+
+
 def _coverage(rows, name, lo, hi):
-    inside = [
-        r["posterior"][name][lo] <= r["truth"][name] <= r["posterior"][name][hi] for r in rows
-    ]
-    return float(np.mean(inside))
+    return float(np.mean([_inside(r, name, lo, hi) for r in rows]))
 
 
 def _known(rows, name):
@@ -323,11 +324,7 @@ def summarise(rows, by_kind=True):
     hidden = [any(f.startswith(HIDDEN_GROUND_FLAG) for f in r.get("flags", [])) for r in good]
     out["hidden_ground_flagged"] = int(sum(hidden))
     if "ground_elevation" in out["quantities"]:  # the misses the flag explains
-        missed = [
-            not (r["posterior"]["ground_elevation"]["p05"] <= r["truth"]["ground_elevation"]
-                 <= r["posterior"]["ground_elevation"]["p95"])
-            for r in good
-        ]  # fmt: skip
+        missed = [not _inside(r, "ground_elevation", "p05", "p95") for r in good]
         out["quantities"]["ground_elevation"]["missed_90_hidden_ground_flagged"] = int(
             sum(m and h for m, h in zip(missed, hidden))
         )

@@ -15,7 +15,8 @@ terrain turn into a tall closed canopy) and says so in the result's flags.
 
 import numpy as np
 
-from lidarinv.observe.ground_return import broadened_densities
+from lidarinv.observe.ground import HALF_MAXIMUM_PER_SIGMA, lower_flank_width
+from lidarinv.observe.ground_return import DENSITY_STEP_M, broadened_densities
 
 from .shot import BROADENING_UPPER_M
 
@@ -26,9 +27,6 @@ WIDTH_TOLERANCE_BINS = 2.0
 
 #: How the result's flag begins.
 HIDDEN_GROUND_FLAG = "ground may be hidden"
-
-#: Half width at half maximum over σ for a Gaussian: the analysis reports lower flanks as σ.
-_HALF_MAXIMUM_PER_SIGMA = np.sqrt(2.0 * np.log(2.0))
 
 
 def widest_ground_flank_m(pulse, broadening_upper_m: float, smoothing_m: float) -> float:
@@ -52,12 +50,9 @@ def widest_ground_flank_m(pulse, broadening_upper_m: float, smoothing_m: float) 
         measures a mode.
     """
     width = float(np.hypot(broadening_upper_m, smoothing_m))
-    offsets, densities, peaks = broadened_densities(pulse, [width])
-    density, peak = densities[0], peaks[0]
-    low = offsets[(offsets < peak) & (density < 0.5 * density.max())]
-    if not low.size:
-        return 0.0
-    return float(peak - low[-1]) / _HALF_MAXIMUM_PER_SIGMA
+    _, densities, _ = broadened_densities(pulse, [width])
+    density = densities[0]
+    return lower_flank_width(density, int(np.argmax(density))) * DENSITY_STEP_M
 
 
 def hidden_ground_note(shot) -> str | None:
@@ -81,7 +76,7 @@ def hidden_ground_note(shot) -> str | None:
     smoothing_m = analysis.smoothing_bins * obs.bin_size
     upper = BROADENING_UPPER_M if shot.has_transmitted_pulse else 0.0
     widest = widest_ground_flank_m(shot.instrument.pulse, upper, smoothing_m)
-    if width <= widest + WIDTH_TOLERANCE_BINS * obs.bin_size / _HALF_MAXIMUM_PER_SIGMA:
+    if width <= widest + WIDTH_TOLERANCE_BINS * obs.bin_size / HALF_MAXIMUM_PER_SIGMA:
         return None
     return (
         f"{HIDDEN_GROUND_FLAG}: the lowest return ({analysis.ground:.2f} m) spreads "

@@ -12,6 +12,7 @@ covariance's inverse. The raise is reported, as a misfit the model did not expla
 """
 
 import numpy as np
+from scipy.optimize import brentq
 
 from .likelihood.gaussian import model_moments
 
@@ -21,8 +22,8 @@ MODEL_ERROR_FLAG = "model error raised"
 #: The largest per-bin sd of the instrument model's error, as a fraction of the signal.
 LARGEST_FLOOR = 2.0
 
-#: Bisection steps for η: the range [η₀, LARGEST_FLOOR] to about 1e-6.
-_STEPS = 22
+#: Absolute tolerance on η.
+_TOLERANCE = 1e-6
 
 
 def floor_for_residuals(residuals, base_variance, unit_variance, floor) -> float:
@@ -55,11 +56,7 @@ def floor_for_residuals(residuals, base_variance, unit_variance, floor) -> float
         return float(floor)
     if excess(LARGEST_FLOOR) > 0.0:
         return LARGEST_FLOOR
-    low, high = float(floor), LARGEST_FLOOR
-    for _ in range(_STEPS):
-        mid = 0.5 * (low + high)
-        low, high = (mid, high) if excess(mid) > 0.0 else (low, mid)
-    return high
+    return float(brentq(excess, floor, LARGEST_FLOOR, xtol=_TOLERANCE))
 
 
 def shot_floor(pilot, estimate, covariance, unit_variance, floor) -> float:

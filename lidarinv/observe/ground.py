@@ -159,13 +159,31 @@ def find_ground(
         index=index,
         uncertainty=float(uncertainty),
         amplitude=lowest.amplitude,
-        width=_lower_width(values - noise.mean, lowest.index) * step,
+        width=lower_flank_width(values - noise.mean, lowest.index) * step,
         n_modes=len(modes),
     )
 
 
-def _lower_width(values, peak: int) -> float:
-    """Half width at half maximum of the flank below ``peak``, as a Gaussian σ (bins)."""
+#: Half width at half maximum over σ for a Gaussian: lower flanks are reported as σ.
+HALF_MAXIMUM_PER_SIGMA = np.sqrt(2.0 * np.log(2.0))
+
+
+def lower_flank_width(values, peak: int) -> float:
+    """Half width at half maximum of the flank below ``peak``, as a Gaussian σ (samples).
+
+    Parameters
+    ----------
+    values : array
+        A waveform above its noise mean (or any density), lowest bin first.
+    peak : int
+        Index of the mode.
+
+    Returns
+    -------
+    float
+        The samples from ``peak`` down to the last one under half its value (at least
+        one), over √(2 ln 2).
+    """
     below = np.flatnonzero(values[:peak] < 0.5 * values[peak])
     half = peak - below[-1] if below.size else peak
-    return max(half, 1) / np.sqrt(2.0 * np.log(2.0))
+    return max(half, 1) / HALF_MAXIMUM_PER_SIGMA
