@@ -27,6 +27,7 @@ they are compared on) and reports the coverage per kind as well (``by_kind``).
                                [--ground-prior-sd M]
                                [--realisations COUNT SHRINKAGE BALL]
                                [--priors studies/study_priors.toml]
+    python studies/recovery.py --resummarise --tag _NAME
 
 Writes studies/output/recovery[_inverse_crime]/{summary.json,shots.json,*.png}.
 """
@@ -56,7 +57,12 @@ from lidarinv.inference import (  # noqa: E402
 )
 from lidarinv.inference.hidden_ground import HIDDEN_GROUND_FLAG  # noqa: E402
 from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS, SIMULATED  # noqa: E402
-from lidarinv.inference.model.parameters import NUISANCE, STRUCTURE, default_space  # noqa: E402
+from lidarinv.inference.model.parameters import (  # noqa: E402
+    DEFAULT_STRUCTURE_PRIORS,
+    NUISANCE,
+    STRUCTURE,
+    default_space,
+)
 from lidarinv.inference.model.priors import Uniform  # noqa: E402
 from lidarinv.inference.model.stand import TOP_SDS, StandMapping, default_template  # noqa: E402
 from lidarinv.observe.analyse import analyse  # noqa: E402
@@ -272,9 +278,34 @@ def _calibration(rows, name):
     }
 
 
-def summarise(rows, by_kind=True):
+def prior_supports(settings) -> dict:
+    """{quantity: (lower, upper)}: the support of the prior of each structural parameter
+    the study compares with a truth (the default prior or the settings' override)."""
+    out = {}
+    for name in QUANTITIES:
+        prior = settings.priors.get(name, {}).get("prior") or DEFAULT_STRUCTURE_PRIORS.get(name)
+        if prior is not None:
+            form = prior.form()
+            out[name] = (float(form.lower), float(form.upper))
+    return out
+
+
+def _outside_support(rows, name, support):
+    """Truths outside the prior's support, which no posterior interval can hold, and the
+    90 % coverage of the others."""
+    lower, upper = support
+    inside = [r for r in rows if lower <= r["truth"][name] <= upper]
+    return {
+        "outside_prior_support": len(rows) - len(inside),
+        "coverage_90_inside_support": _coverage(inside, name, "p05", "p95") if inside else None,
+    }
+
+
+def summarise(rows, by_kind=True, supports=None):
     """Coverage, calibration and errors per quantity over the inverted shots; with
-    ``by_kind``, the same for each stand kind of rows that name one (``by_kind``)."""
+    ``by_kind``, the same for each stand kind of rows that name one (``by_kind``); with
+    ``supports`` (:func:`prior_supports`), how many truths lie outside their prior's
+    support and the coverage of the rest."""
     good = [r for r in rows if "posterior" in r]
     n = len(good)
     out = {"n_shots": len(rows), "n_inverted": n, "quantities": {}}
@@ -300,6 +331,8 @@ def summarise(rows, by_kind=True):
             "rmse": float(np.sqrt(np.mean(err**2))),
             **_calibration(known, name),
         }
+        if supports and name in supports:
+            out["quantities"][name].update(_outside_support(known, name, supports[name]))
     direct_ok = [r for r in good if r["direct"]["status"] == "ok"]
     if direct_ok:
         pairs = {
@@ -339,7 +372,7 @@ def summarise(rows, by_kind=True):
     kinds = list(dict.fromkeys(r["kind"] for r in rows if "kind" in r))
     if by_kind and kinds:
         out["by_kind"] = {
-            kind: summarise([r for r in rows if r.get("kind") == kind], by_kind=False)
+            kind: summarise([r for r in rows if r.get("kind") == kind], False, supports)
             for kind in kinds
         }
     return out
@@ -440,7 +473,14 @@ def main():
     )
     parser.add_argument("--cohorts", choices=("1", "2", "auto"), help="height cohorts")
     parser.add_argument("--kinds", nargs="+", help="out-of-family stand kinds (default: all)")
+    parser.add_argument(
+        "--resummarise",
+        action="store_true",
+        help="rewrite the summary of the run of --tag from its shots with this summary code",
+    )
     args = parser.parse_args()
+    if args.resummarise:
+        return resummarise(_output_folder(args.inverse_crime, args.tag))
     if args.truth == OUT_OF_FAMILY and args.inverse_crime:
         parser.error("--inverse-crime has no out-of-family truth")
     choices = dict(
@@ -476,11 +516,7 @@ def main():
         (i, int(s), not args.inverse_crime, settings, args.truth, kinds)
         for i, s in enumerate(seeds)
     ]
-    folder = (
-        Path(__file__).parent
-        / "output"
-        / (("recovery_inverse_crime" if args.inverse_crime else "recovery") + args.tag)
-    )
+    folder = _output_folder(args.inverse_crime, args.tag)
     folder.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     rows = []
@@ -490,7 +526,7 @@ def main():
             print(f"shot {row['shot']}: {row.get('error', 'ok')}", flush=True)
             # kept as they come, so an interrupted run keeps its finished shots
             (folder / "shots.json").write_text(json.dumps(rows, indent=1))
-    summary = summarise(rows)
+    summary = summarise(rows, supports=prior_supports(settings))
     summary.update(
         {
             "explicit_realisations": not args.inverse_crime,
@@ -516,6 +552,26 @@ def main():
     (folder / "summary.json").write_text(json.dumps(summary, indent=1))
     if summary["n_inverted"]:
         plot(rows, folder)
+    print(json.dumps(summary, indent=1))
+
+
+def _output_folder(inverse_crime, tag) -> Path:
+    name = "recovery_inverse_crime" if inverse_crime else "recovery"
+    return Path(__file__).parent / "output" / (name + tag)
+
+
+def resummarise(folder: Path) -> None:
+    """Rewrite ``folder``'s summary from its shots with the current :func:`summarise`,
+    keeping the run's own record (settings, wall time); its priors file gives the prior
+    supports."""
+    rows = json.loads((folder / "shots.json").read_text())
+    old = json.loads((folder / "summary.json").read_text())
+    priors = old.get("priors_file")
+    settings = InversionSettings() if priors is None else InversionSettings.from_priors_file(priors)
+    summary = summarise(rows, supports=prior_supports(settings))
+    record = {k: v for k, v in old.items() if k not in summarise([], by_kind=False)}
+    kept = {k: v for k, v in record.items() if k not in summary}
+    (folder / "summary.json").write_text(json.dumps({**summary, **kept}, indent=1))
     print(json.dumps(summary, indent=1))
 
 

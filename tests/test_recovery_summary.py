@@ -165,3 +165,30 @@ def test_ground_misses_under_a_hidden_ground_flag_are_counted(recovery):
     assert out["hidden_ground_flagged"] == 2
     ground = out["quantities"]["ground_elevation"]
     assert ground["coverage_90"] == 0.5 and ground["missed_90_hidden_ground_flagged"] == 1
+
+
+def test_truths_outside_the_prior_support_are_counted_apart(recovery):
+    """A closed stand's cover of 1 lies beyond a cover prior ending at 0.99: no interval
+    can hold it, and the coverage of the truths inside the support leaves it out."""
+    from lidarinv.inference import InversionSettings
+
+    def row(truth, lower, upper):
+        posterior = {"p05": lower, "p16": lower, "median": 0.5 * (lower + upper),
+                     "p84": upper, "p95": upper}  # fmt: skip
+        return {
+            "truth": {"cover": truth}, "posterior": {"cover": posterior},
+            "direct": {"status": "no ground peak"}, "converged": True, "start_modes": 1,
+            "seconds": 1.0, "log_prob": {"truth": 0.0, "best_in_chain": 0.0},
+        }  # fmt: skip
+
+    supports = recovery.prior_supports(InversionSettings())
+    assert supports["cover"] == (0.001, 0.99)
+    rows = [row(1.0, 0.9, 0.99), row(0.5, 0.4, 0.6), row(0.3, 0.4, 0.6), row(0.7, 0.6, 0.8)]
+    cover = recovery.summarise(rows, by_kind=False, supports=supports)["quantities"]["cover"]
+    assert cover["coverage_90"] == 0.5
+    assert cover["outside_prior_support"] == 1
+    assert cover["coverage_90_inside_support"] == pytest.approx(2 / 3)
+    assert (
+        "outside_prior_support"
+        not in recovery.summarise(rows, by_kind=False)["quantities"]["cover"]
+    )

@@ -78,6 +78,14 @@ def render_coverage(record, figures: Path, key: str) -> str:
             f"{ground['missed_90_hidden_ground_flagged']} of the {missed} ground elevations "
             "outside their 90 % interval carry that flag.\n\n"
         )
+    outside = {n: q for n, q in quantities.items() if q.get("outside_prior_support")}
+    for name, q in outside.items():
+        count, rest = q["outside_prior_support"], q["n"] - q["outside_prior_support"]
+        text += (
+            f"{count} true values of ``{name}`` lie outside its prior's support, where no "
+            f"interval can hold them; the 90 % coverage of the other {rest} is "
+            f"{_cell(q['coverage_90_inside_support'])}.\n\n"
+        )
     if ranges:
         text += (
             "A coverage is consistent with its nominal level when it lies in the binomial "
