@@ -569,9 +569,8 @@ def resummarise(folder: Path) -> None:
     priors = old.get("priors_file")
     settings = InversionSettings() if priors is None else InversionSettings.from_priors_file(priors)
     summary = summarise(rows, supports=prior_supports(settings))
-    record = {k: v for k, v in old.items() if k not in summarise([], by_kind=False)}
-    kept = {k: v for k, v in record.items() if k not in summary}
-    (folder / "summary.json").write_text(json.dumps({**summary, **kept}, indent=1))
+    record = {k: v for k, v in old.items() if k not in summary}  # the run's settings
+    (folder / "summary.json").write_text(json.dumps({**summary, **record}, indent=1))
     print(json.dumps(summary, indent=1))
 
 
