@@ -2,6 +2,7 @@
 posteriors."""
 
 import importlib.util
+import json
 from pathlib import Path
 
 import numpy as np
@@ -191,4 +192,19 @@ def test_truths_outside_the_prior_support_are_counted_apart(recovery):
     assert (
         "outside_prior_support"
         not in recovery.summarise(rows, by_kind=False)["quantities"]["cover"]
+    )
+
+
+def test_a_run_is_resummarised_from_its_shots_keeping_its_record(recovery, tmp_path):
+    rows = gaussian_rows(np.random.default_rng(3), 50, 1.0)
+    for row in rows:
+        row.update(direct={"status": "no ground peak"}, converged=True, start_modes=1,
+                   seconds=1.0, log_prob={"truth": np.nan, "best_in_chain": 0.0})  # fmt: skip
+    (tmp_path / "shots.json").write_text(json.dumps(rows))
+    (tmp_path / "summary.json").write_text(json.dumps({"n_shots": 1, "wall_seconds": 12.5}))
+    recovery.resummarise(tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["n_shots"] == 50 and summary["wall_seconds"] == 12.5
+    assert summary["quantities"]["cover"]["outside_prior_support"] == sum(
+        not 0.001 <= r["truth"]["cover"] <= 0.99 for r in rows
     )
