@@ -112,6 +112,10 @@ def invert_one(job):
     record["flags"] = list(result.flags)
     record["steps"] = int(result.diagnostics.get("n_steps", 0))
     record["cohorts"] = result.settings["cohorts"]
+    choice = result.diagnostics.get("cohorts", {})
+    # BIC(one cohort) − BIC(two) at their MAPs; NaN where two storeys were not searched
+    bic = choice.get("bic", {})
+    record["bic_two_cohorts_gain"] = float(bic[1] - bic[2]) if 2 in bic else np.nan
     record["predictive_p_value"] = result.diagnostics["predictive_p_value"]
     record["residual_scale"] = result.diagnostics.get("residual_scale", np.nan)
     record["instrument_floor"] = float(result.diagnostics.get("instrument_floor", np.nan))
@@ -164,6 +168,10 @@ def statistics(records, instrument) -> dict:
         "median_cpu_seconds": _percentile_of(done, "cpu_seconds", 50),
         "p90_cpu_seconds": _percentile_of(done, "cpu_seconds", 90),
         "two_cohorts": int(sum(r.get("cohorts") == 2 for r in done)),
+        # two storeys chosen with "very strong" evidence (Kass & Raftery 1995: ΔBIC > 10)
+        "two_cohorts_bic_over_10": int(
+            sum(r.get("bic_two_cohorts_gain", np.nan) > 10.0 for r in done)
+        ),
         "misfit_flagged": int(sum(r.get("predictive_p_value", 1.0) < 0.01 for r in done)),
         "model_error_raised": int(
             sum(any(f.startswith(MODEL_ERROR_FLAG) for f in r["flags"]) for r in done)

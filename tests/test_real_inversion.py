@@ -53,3 +53,24 @@ def test_a_two_layer_real_shot_is_fitted_with_two_cohorts_when_they_are_availabl
     own = analyse(obs, convention).rh[98]
     footprint = np.percentile(result.column("rh98_footprint"), [5, 50, 95])
     assert footprint[0] - 0.5 <= own <= footprint[2] + 0.5
+
+
+def test_the_real_inversion_study_counts_storeys_chosen_by_strong_evidence():
+    """Two storeys chosen with a BIC lower by 50 and by 5, one storey where two were not
+    searched: two shots with two cohorts, one of them by more than 10."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "studies" / "real_inversion.py"
+    spec = importlib.util.spec_from_file_location("real_inversion_study", path)
+    study = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(study)
+
+    def record(cohorts, gain):
+        return {"instrument": "lvis", "shot": 1, "posterior": {}, "converged": True,
+                "flags": [], "seconds": 1.0, "cohorts": cohorts, "bic_two_cohorts_gain": gain}  # fmt: skip
+
+    records = [record(2, 50.0), record(2, 5.0), record(1, np.nan), {**record(1, 0.0)}]
+    del records[-1]["bic_two_cohorts_gain"]  # a run from before the count
+    out = study.statistics(records, "lvis")
+    assert (out["two_cohorts"], out["two_cohorts_bic_over_10"]) == (2, 1)
