@@ -310,11 +310,12 @@ def main(argv=None):
 
 def combine(tags, out) -> None:
     """One summary, shot list and RH98 figure of earlier runs (e.g. the instruments run
-    apart), with their predictive figures."""
+    apart, or part of a file run again), with their predictive figures. A shot in more
+    than one run keeps the record of the last tag that holds it."""
     import shutil
 
     out.mkdir(parents=True, exist_ok=True)
-    records, summary = [], {"combined": list(tags), "data": {}}
+    by_shot, summary = {}, {"combined": list(tags), "data": {}}
     for tag in tags:
         folder = HERE / "output" / f"real_inversion{tag}"
         done = folder / "summary.json"
@@ -323,10 +324,12 @@ def combine(tags, out) -> None:
         for key in ("max_steps", "priors", "cohorts", "stopped_early"):
             if key in part:
                 summary.setdefault(key, part[key])
-        records += json.loads((folder / "shots.json").read_text())
+        for record in json.loads((folder / "shots.json").read_text()):
+            by_shot[record["instrument"], record["shot"]] = record
         for figure in folder.glob("predictive_*.png"):
             if folder.resolve() != out.resolve():
                 shutil.copy(figure, out / figure.name)
+    records = list(by_shot.values())
     for instrument in sorted({r["instrument"] for r in records}):
         summary[instrument] = statistics(records, instrument)
     _write(out, summary, records)
