@@ -168,10 +168,9 @@ def statistics(records, instrument) -> dict:
         "median_cpu_seconds": _percentile_of(done, "cpu_seconds", 50),
         "p90_cpu_seconds": _percentile_of(done, "cpu_seconds", 90),
         "two_cohorts": int(sum(r.get("cohorts") == 2 for r in done)),
-        # two storeys chosen with "very strong" evidence (Kass & Raftery 1995: ΔBIC > 10)
-        "two_cohorts_bic_over_10": int(
-            sum(r.get("bic_two_cohorts_gain", np.nan) > 10.0 for r in done)
-        ),
+        # two storeys chosen with "very strong" evidence (Kass & Raftery 1995: ΔBIC > 10),
+        # among the shots whose run recorded the gain (None where none did)
+        "two_cohorts_bic_over_10": _count_over(done, "bic_two_cohorts_gain", 10.0),
         "misfit_flagged": int(sum(r.get("predictive_p_value", 1.0) < 0.01 for r in done)),
         "model_error_raised": int(
             sum(any(f.startswith(MODEL_ERROR_FLAG) for f in r["flags"]) for r in done)
@@ -345,6 +344,13 @@ def _write(out, summary, records) -> None:
 
 def _write_shots(out, records) -> None:
     (out / "shots.json").write_text(json.dumps(records, indent=1, default=_json))
+
+
+def _count_over(records, key, threshold):
+    """How many records hold a value of ``key`` above ``threshold``; None where none
+    holds the key."""
+    values = [r[key] for r in records if key in r]
+    return int(sum(v > threshold for v in values)) if values else None
 
 
 def _percentile_of(records, key, percentile):

@@ -74,3 +74,4 @@ def test_the_real_inversion_study_counts_storeys_chosen_by_strong_evidence():
     del records[-1]["bic_two_cohorts_gain"]  # a run from before the count
     out = study.statistics(records, "lvis")
     assert (out["two_cohorts"], out["two_cohorts_bic_over_10"]) == (2, 1)
+    assert study.statistics(records[-1:], "lvis")["two_cohorts_bic_over_10"] is None

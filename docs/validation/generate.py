@@ -298,7 +298,7 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
                 f"{part['model_error_raised']} shots"
                 + (f" (median η {_cell(floor)} of the signal per bin)." if floor else ".")
             )
-        if "two_cohorts_bic_over_10" in part:
+        if part.get("two_cohorts_bic_over_10") is not None:
             text += (
                 f" {part['two_cohorts']} shots chose two height cohorts, "
                 f"{part['two_cohorts_bic_over_10']} of them with a BIC lower by more than 10."
