@@ -112,9 +112,8 @@ def invert_one(job):
     record["flags"] = list(result.flags)
     record["steps"] = int(result.diagnostics.get("n_steps", 0))
     record["cohorts"] = result.settings["cohorts"]
-    choice = result.diagnostics.get("cohorts", {})
     # BIC(one cohort) − BIC(two) at their MAPs; NaN where two storeys were not searched
-    bic = choice.get("bic", {})
+    bic = result.diagnostics.get("cohorts", {}).get("bic", {})
     record["bic_two_cohorts_gain"] = float(bic[1] - bic[2]) if 2 in bic else np.nan
     record["predictive_p_value"] = result.diagnostics["predictive_p_value"]
     record["residual_scale"] = result.diagnostics.get("residual_scale", np.nan)
