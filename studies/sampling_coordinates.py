@@ -84,7 +84,8 @@ def physical_tau(problem, run, burn):
 
 def run_shot(obs, settings, seed):
     rng = np.random.default_rng(seed)
-    problem, centre, _ = prepare_problem(obs, settings, rng)
+    prepared = prepare_problem(obs, settings, rng)
+    problem, centre = prepared.problem, prepared.start
     start = time.perf_counter()
     run = run_sampler(problem.log_posterior, problem.space, rng, settings.sampler, start=centre)
     seconds = time.perf_counter() - start

@@ -51,7 +51,8 @@ def _random_covariance(bins, rng, rank=12, scale=20.0):
 
 
 def _with_covariance(problem, covariance):
-    return problem.log_posterior.with_fixed_discrepancy(covariance)
+    post = problem.log_posterior
+    return post.with_likelihood(post.likelihood.with_fixed_discrepancy(covariance))
 
 
 def _truth_rows(problem, shot, rng, n=3):
@@ -181,7 +182,7 @@ def test_the_instrument_floor_adds_the_observed_per_bin_variance_to_the_covarian
             realisations=RealisationSettings(count=8, instrument_floor=floor),
             sampler=SamplerSettings(candidates=64, starts=2),
         )
-        problem, _, _ = prepare_problem(shot, settings, np.random.default_rng(5))
+        problem = prepare_problem(shot, settings, np.random.default_rng(5)).problem
         covariances[floor] = problem.log_posterior.likelihood.fixed_discrepancy
     added = covariances[0.1] - covariances[0.0]
     expected = fixed_discrepancy(problem.shot, replace(settings, discrepancy=0.1))

@@ -151,6 +151,6 @@ def test_a_canopy_too_short_for_two_storeys_is_searched_with_one_cohort(rng):
     obs = synthetic_shot(ShotRecipe(short), rng)
     settings = InversionSettings(discrepancy_model="observed")
     problem, _, choice = choose_cohorts(obs, settings, rng)
-    assert choice["chosen"] == 1 and list(choice["bic"]) == [1] and not choice["undecided"]
-    assert 0.0 < choice["canopy_extent_m"] < STOREYS_RESOLVED_PULSE_WIDTHS * choice["pulse_width_m"]
+    assert choice.chosen == 1 and list(choice.bic) == [1] and not choice.undecided
+    assert 0.0 < choice.canopy_extent_m < STOREYS_RESOLVED_PULSE_WIDTHS * choice.pulse_width_m
     assert "cohort2_fraction" not in problem.space.names

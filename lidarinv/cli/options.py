@@ -92,38 +92,10 @@ def inversion_settings(args, measured_pulse: bool = True):
     return replace(settings, sampler=sampler)
 
 
-def sampled_dimensions(settings, measured_pulse: bool = True) -> int:
-    """Number of coordinates the sampler moves for ``settings`` on a shot whose gain can
-    be integrated out (every bin exactly recorded): the parameter space of
-    :func:`lidarinv.inference.default_space` with the settings' priors. With
-    ``measured_pulse`` (the shot carries its transmitted waveform, as GEDI and LVIS files
-    do) the pulse's broadening is sampled too."""
-    from lidarinv.inference import default_space
-    from lidarinv.inference.model.priors import Uniform
-
-    overrides = dict(settings.priors)
-    if not settings.sample_noise:
-        overrides.setdefault("baseline", {"fixed": 0.0})
-        overrides.setdefault("noise_sigma", {"fixed": 1.0})
-    gain_fixed = overrides.get("gain", {}).get("fixed") is not None
-    if settings.marginalise_gain and not gain_fixed and settings.shot_factor == 0:
-        if settings.discrepancy_model != "model":
-            overrides["gain"] = {**overrides.get("gain", {}), "marginalised": True}
-    placeholder = Uniform(0.0, 1.0)
-    nuisance = {name: placeholder for name in ("ground_elevation", "baseline")}
-    nuisance.update(gain=Uniform(1.0, 2.0), noise_sigma=Uniform(1.0, 2.0))
-    if measured_pulse and settings.use_measured_pulse:
-        nuisance["pulse_broadening"] = placeholder
-    cohorts = 1 if settings.cohorts == 1 else 2  # "auto" samples two cohorts too
-    space = default_space(
-        nuisance, overrides, settings.ridges, settings.unbounded, settings.tallest_stem,
-        cohorts=cohorts,
-    )  # fmt: skip
-    return space.ndim
-
-
 def check_walkers(settings, walkers: int, measured_pulse: bool = True) -> None:
     """``walkers`` is at least the ensemble's minimum, 2 × sampled coordinates + 2."""
+    from lidarinv.inference.problem import sampled_dimensions
+
     ndim = sampled_dimensions(settings, measured_pulse)
     least = 2 * ndim + 2
     if walkers < least:

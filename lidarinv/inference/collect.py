@@ -5,12 +5,6 @@ import numpy as np
 
 from lidarinv.observe import processing_settings
 
-from .likelihood.conditional import (
-    conditioning_obstacle,
-    discrepancy_given_data,
-    from_basis_matrix,
-)
-from .likelihood.gaussian import model_moments
 from .model.tallest_stem import disc_area
 from .model.waveform import RH_LEVELS, relative_heights
 from .posterior import BLOB_NAMES, BLOB_UNITS
@@ -101,8 +95,7 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
     levels = list(PRODUCT_RH.values())
     heights = np.full((x.shape[0], len(levels)), np.nan)
     footprint = np.full((x.shape[0], len(FOOTPRINT_RH)), np.nan)
-    conditioned = conditioning_obstacle(like) is None
-    back = from_basis_matrix(like) if conditioned else None
+    conditioned = like.conditioning_obstacle is None
     parts = []
     for first in range(0, x.shape[0], _CHUNK):
         rows = slice(first, first + _CHUNK)
@@ -113,15 +106,13 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
             continue
         values = problem.space.values(x[rows][good])
         values.update({name: draws[good] for name, draws in parts[-1].items()})
-        mean = model_moments(
-            terms.signal[good], values["gain"], values["baseline"], values["noise_sigma"]
-        )[0]
+        mean = like.predictive_moments(terms.signal[good], values)[0]
         heights[first + good] = product_relative_heights(
             mean, problem.window.axis, values["ground_elevation"], values["baseline"],
             problem.analysis, settings, levels,
         )  # fmt: skip
         if conditioned:
-            own = discrepancy_given_data(like, terms.signal[good], values, rng, back)
+            own = like.discrepancy_given_data(terms.signal[good], values, rng)
             own += mean - values["baseline"][:, None]  # a·W + d
             footprint[first + good] = relative_heights(
                 own, problem.window.axis, values["ground_elevation"], list(FOOTPRINT_RH.values())
@@ -130,85 +121,6 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
     heights = {name: heights[:, i] for i, name in enumerate(PRODUCT_RH)}
     heights.update({name: footprint[:, i] for i, name in enumerate(FOOTPRINT_RH)})
     return drawn, heights
-
-
-def replicate_observation(like, signal, values, rng) -> np.ndarray:
-    """One replicated observation per posterior sample.
-
-    Parameters
-    ----------
-    like : ShotLikelihood
-        The likelihood stage (its window, noise and discrepancy).
-    signal : array (n, bins)
-        Model waveforms W of the samples.
-    values : dict of arrays (n,)
-        The samples' parameters (gain, baseline and noise σ in DN).
-    rng : numpy.random.Generator
-
-    Returns
-    -------
-    draws : array (n, bins) (DN)
-        The model mean b + a·W plus noise of the likelihood's per-bin variance (noise,
-        shot noise and the model discrepancy), correlated from bin to bin as the
-        likelihood takes it (the read noise where it is whitened, a discrepancy
-        covariance as simulated; the rest white), set to the floor or the digitiser
-        maximum where the product would have set it. Quantiles over the rows
-        are the posterior predictive bands.
-    mean, variance : array (n, bins)
-        The predictive mean (DN) and per-bin variance (DN²) they were drawn from.
-    """
-    if like.fixed_discrepancy is None:
-        extra = (like.discrepancy * np.asarray(values["gain"])[:, None] * signal) ** 2
-    elif like.fixed_discrepancy.ndim == 2:  # a covariance: its diagonal, per bin
-        extra = np.diag(like.fixed_discrepancy)
-    else:
-        extra = like.fixed_discrepancy
-    mean, variance = model_moments(
-        signal, values["gain"], values["baseline"], values["noise_sigma"], like.shot_factor, extra
-    )
-    noise = np.asarray(values["noise_sigma"], float)[:, None] * np.ones_like(mean)
-    correlated = np.zeros(mean.shape[1])  # the variance drawn with its correlations
-    draws = mean.copy()
-    whitening = getattr(like, "whitening", None)  # None: white read noise
-    if whitening is not None:  # the read noise correlated as the likelihood takes it
-        root = np.linalg.cholesky(whitening.covariance(mean.shape[1]))
-        draws += noise * (rng.standard_normal(mean.shape) @ root.T)
-        correlated = correlated + noise**2
-    if like.fixed_discrepancy is not None and like.fixed_discrepancy.ndim == 2:
-        root = covariance_root(like.fixed_discrepancy)  # bin to bin, as simulated
-        draws += rng.standard_normal((mean.shape[0], root.shape[1])) @ root.T
-        correlated = correlated + np.diag(like.fixed_discrepancy)
-    rest = np.clip(variance - correlated, 0.0, None)  # white: the remaining variance
-    draws += np.sqrt(rest) * rng.standard_normal(mean.shape)
-    return _recorded(draws, like.data), mean, variance
-
-
-def covariance_root(covariance) -> np.ndarray:
-    """R with R·Rᵀ = ``covariance`` (symmetric, positive semi-definite; tiny negative
-    eigenvalues of rounding taken as 0).
-
-    Parameters
-    ----------
-    covariance : array (bins, bins)
-
-    Returns
-    -------
-    array (bins, k)
-        The eigenvectors of the positive eigenvalues, each scaled by its square root.
-    """
-    values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
-    keep = values > 0.0
-    return vectors[:, keep] * np.sqrt(values[keep])
-
-
-def _recorded(draws, data) -> np.ndarray:
-    """Draws as the digitiser records them: at the floor or the maximum where the product
-    would have set them."""
-    if data.censored.any() and np.isfinite(data.floor):
-        draws = np.maximum(draws, data.floor)
-    if np.isfinite(data.saturation):
-        draws = np.minimum(draws, data.saturation)
-    return draws
 
 
 #: A posterior-predictive p-value below this flags a misfit the model cannot explain.
@@ -224,7 +136,7 @@ def fit_statistics(log_likelihood, observed, replicated, mean, variance) -> dict
         log p(y | θᵢ) of posterior samples θᵢ.
     observed : array (bins,) (DN)
     replicated : array (n, bins) (DN)
-        One replicated observation per sample (:func:`replicate_observation`).
+        One replicated observation per sample (the likelihood's ``replicate``).
     mean, variance : array (n, bins)
         Each sample's predictive mean (DN) and per-bin variance (DN²).
 
@@ -254,13 +166,6 @@ def fit_statistics(log_likelihood, observed, replicated, mean, variance) -> dict
         "predictive_p_value": float(np.mean(t_replicated >= t_observed)),
         "residual_scale": float(np.sqrt(np.mean(t_observed) / np.mean(t_replicated))),
     }
-
-
-def _likelihood_flags(like) -> list:
-    """Where the likelihood had to simplify the shot's noise, what it did."""
-    if like.correlation_obstacle is None:
-        return []
-    return [f"read noise taken as white: {like.correlation_obstacle}"]
 
 
 def _misfit_flags(fit) -> list:
@@ -311,13 +216,8 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     good = np.isfinite(terms.log_posterior)
     values = space.values(x[pick][good])
     values.update({name: draws[pick][good] for name, draws in drawn.items()})
-    mean = model_moments(
-        terms.signal[good], values["gain"], values["baseline"], values["noise_sigma"]
-    )[0]
-    predictive = np.percentile(mean, QUANTILES, axis=0)
-    replicated, rep_mean, rep_variance = replicate_observation(
-        post.likelihood, terms.signal[good], values, rng
-    )
+    replicated, rep_mean, rep_variance = post.likelihood.replicate(terms.signal[good], values, rng)
+    predictive = np.percentile(rep_mean, QUANTILES, axis=0)
     fit = fit_statistics(
         terms.log_likelihood[good], problem.window.samples, replicated, rep_mean, rep_variance
     )
@@ -368,7 +268,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             "tau_history": [[int(i), t] for i, t in run.tau_history],
             **fit,
         },
-        flags=list(run.flags) + _likelihood_flags(post.likelihood) + _misfit_flags(fit),
+        flags=list(run.flags) + post.likelihood.notes + _misfit_flags(fit),
         profile_heights=profile_heights,
         profile=np.percentile(profile, QUANTILES, axis=0),
         axis=problem.window.axis,

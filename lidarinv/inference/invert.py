@@ -7,7 +7,7 @@ samples the posterior (:func:`.sampling.run_sampler`) and collects the result
 one height cohort or two, by the BIC of their MAPs (:func:`choose_cohorts`).
 """
 
-from dataclasses import replace
+from dataclasses import asdict, dataclass, field, replace
 
 import emcee
 import numpy as np
@@ -85,10 +85,90 @@ def invert_shot(
         return _invert(observation, settings, rng, progress, backend_path)
 
 
+@dataclass(frozen=True)
+class CohortChoice:
+    """The stand model :func:`choose_cohorts` chose, and why.
+
+    Attributes
+    ----------
+    chosen : int
+        Height cohorts, 1 or 2.
+    map_log_likelihood, bic : dict of int → float
+        Per model searched, its MAP's log-likelihood and BIC.
+    undecided : bool
+        The BICs differ by less than :data:`BIC_UNDECIDED`.
+    canopy_extent_m, pulse_width_m : float (m)
+        The shot's signal start above its ground and its pulse's width, which decide
+        whether two storeys are searched.
+    """
+
+    chosen: int
+    map_log_likelihood: dict
+    bic: dict
+    undecided: bool
+    canopy_extent_m: float
+    pulse_width_m: float
+
+    def describe(self) -> dict:
+        """The choice as a dict (the result's ``diagnostics["cohorts"]``)."""
+        return asdict(self)
+
+    def note(self) -> str | None:
+        """The result's flag where the data leave both stand models."""
+        if not self.undecided:
+            return None
+        return (
+            f"stand model undecided: BIC {self.bic[1]:.1f} with one cohort, {self.bic[2]:.1f} "
+            "with two at their MAPs; the data leave both explanations"
+        )
+
+
+@dataclass
+class Preparation:
+    """What the passes before sampling made of a shot (:func:`prepare_problem`).
+
+    Attributes
+    ----------
+    problem : InversionProblem
+        The posterior to sample.
+    start : array (ndim,), array (k, ndim) or None
+        The sampler's start (unbounded): the pilot MAP, or it and the optima of competing
+        grounds, or None for the MAP search.
+    notes : list of str
+        Flags for the result.
+    cohorts : CohortChoice or None
+        The stand model's choice, with ``cohorts="auto"``.
+    discrepancy_seconds : float or None (s)
+        The discrepancy simulation's wall time, where it ran.
+    instrument_floor : float or None
+        η, the instrument model's error (:mod:`.model_error`), where it was sized.
+    competing_grounds : list of float or None (m)
+        The MAP's ground first, then other optima's, where they explain the shot with the
+        ground elsewhere (:func:`.ambiguity.competing_grounds`).
+    """
+
+    problem: InversionProblem
+    start: np.ndarray | None = None
+    notes: list = field(default_factory=list)
+    cohorts: CohortChoice | None = None
+    discrepancy_seconds: float | None = None
+    instrument_floor: float | None = None
+    competing_grounds: list | None = None
+
+    def diagnostics(self) -> dict:
+        """The passes' outcomes for the result's diagnostics."""
+        found = {
+            "cohorts": None if self.cohorts is None else self.cohorts.describe(),
+            "competing_grounds": self.competing_grounds,
+            "instrument_floor": self.instrument_floor,
+        }
+        return {key: value for key, value in found.items() if value is not None}
+
+
 def prepare_problem(
     observation: Observation, settings: InversionSettings | None, rng
-) -> tuple[InversionProblem, np.ndarray | None, dict]:
-    """The posterior :func:`invert_shot` samples.
+) -> Preparation:
+    """The posterior :func:`invert_shot` samples, and the passes' outcomes before it.
 
     Parameters
     ----------
@@ -98,73 +178,66 @@ def prepare_problem(
 
     Returns
     -------
-    problem : InversionProblem
-        :func:`.problem.build_problem`, with the simulated discrepancy covariance
+    Preparation
+        :func:`.problem.build_problem` (with ``cohorts="auto"``, the chosen model,
+        :func:`choose_cohorts`), with the simulated discrepancy covariance
         (:func:`.realisations.realisation_covariance`) where the settings ask for it and
-        it can apply.
-    start : array (ndim,), array (k, ndim) or None
-        The sampler's start (unbounded): the pilot MAP (with ``cohorts="auto"``, the
-        chosen model's), or it and the optima of competing grounds
-        (:func:`.ambiguity.competing_grounds`), or None for the MAP search.
-    report : dict
-        ``seconds`` and ``map_converged`` of the simulation, if run, ``notes`` (flags
-        for the result), with ``cohorts="auto"`` the stand model's choice
-        (:func:`choose_cohorts`), and ``competing_grounds`` (m), the MAP's ground first,
-        where other optima explain the shot with the ground elsewhere.
+        it can apply, the instrument model's error sized by the pilot's residuals
+        (:func:`.model_error.shot_floor`), and the sampler's start.
     """
     settings = InversionSettings() if settings is None else settings
-    start, report = None, {"notes": []}
     if settings.cohorts == AUTO:
-        problem, estimate, report["cohorts"] = choose_cohorts(observation, settings, rng)
-        if report["cohorts"]["undecided"]:
-            bic = report["cohorts"]["bic"]
-            report["notes"].append(
-                f"stand model undecided: BIC {bic[1]:.1f} with one cohort, {bic[2]:.1f} with "
-                "two at their MAPs; the data leave both explanations"
-            )
+        problem, estimate, choice = choose_cohorts(observation, settings, rng)
+        prepared = Preparation(problem, cohorts=choice)
+        if choice.note() is not None:
+            prepared.notes.append(choice.note())
     else:
         problem, estimate = build_problem(observation, settings), None
+        prepared = Preparation(problem)
     settings = problem.settings
     hidden = hidden_ground_note(problem.shot)
     if hidden is not None:
-        report["notes"].append(hidden)
+        prepared.notes.append(hidden)
     pilot = problem.log_posterior  # the posterior the MAP search maximised
+    likelihood = pilot.likelihood
     if settings.discrepancy_model == SIMULATED:
         obstacle = covariance_obstacle(problem.window, settings.shot_factor)
         if obstacle is None:
-            covariance, simulated = realisation_covariance(
+            covariance, simulation = realisation_covariance(
                 problem.log_posterior, problem.instrument, rng, settings.realisations,
                 settings.sampler, estimate,
             )  # fmt: skip
-            estimate = simulated.pop("estimate")
-            report.update(simulated)
+            estimate = simulation.estimate
+            prepared.discrepancy_seconds = simulation.seconds
             least = settings.realisations.instrument_floor
             if least > 0:  # the instrument model's own error, on the diagonal
                 unit = fixed_discrepancy(problem.shot, replace(settings, discrepancy=1.0))
-                floor = shot_floor(pilot, estimate, covariance, unit, least)
+                simulated_only = likelihood.with_fixed_discrepancy(covariance)
+                floor = shot_floor(pilot, simulated_only, estimate, unit, least)
                 covariance = covariance + floor**2 * np.diag(unit)
-                report["instrument_floor"] = floor
+                prepared.instrument_floor = floor
                 if floor > least:
-                    report["notes"].append(describe_floor(floor, least))
-            problem = problem.with_fixed_discrepancy(covariance)
-            if not simulated["map_converged"]:
-                report["notes"].append("MAP optimiser did not report convergence")
+                    prepared.notes.append(describe_floor(floor, least))
+            problem = problem.with_likelihood(likelihood.with_fixed_discrepancy(covariance))
+            if not estimate.converged:
+                prepared.notes.append("MAP optimiser did not report convergence")
         else:
-            report["notes"].append(f"per-bin discrepancy used instead of realisations: {obstacle}")
+            prepared.notes.append(f"per-bin discrepancy used instead of realisations: {obstacle}")
+    prepared.problem = problem
     if estimate is not None:  # the pilot's MAP, not searched twice, and its rivals
         kept = competing_grounds(
             lambda u: pilot(u)[:, 0], estimate, problem.space,
             pulse_width_m(problem.instrument.pulse),
         )  # fmt: skip
-        start = estimate.u
+        prepared.start = estimate.u
         if len(kept) > 1:
-            start = np.array([mode.u for mode, _ in kept])
-            report["notes"].append(describe_competing(kept))
-            report["competing_grounds"] = [float(elevation) for _, elevation in kept]
-    return problem, start, report
+            prepared.start = np.array([mode.u for mode, _ in kept])
+            prepared.notes.append(describe_competing(kept))
+            prepared.competing_grounds = [float(elevation) for _, elevation in kept]
+    return prepared
 
 
-def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object, dict]:
+def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object, CohortChoice]:
     """The stand model, one height cohort or two, the shot's own evidence prefers.
 
     Each model's MAP is searched under the per-bin ``observed`` discrepancy, which the
@@ -191,11 +264,7 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
         The chosen model's problem (before any simulated discrepancy).
     estimate : MapEstimate
         Its MAP search, for the discrepancy's simulation.
-    choice : dict
-        ``chosen`` (1 or 2), ``map_log_likelihood`` and ``bic`` per model searched,
-        ``undecided``: the BICs differ by less than :data:`BIC_UNDECIDED`, and
-        ``canopy_extent_m`` and ``pulse_width_m``, the shot's signal start above its
-        ground and its pulse's width (m), which decide whether two storeys are searched.
+    choice : CohortChoice
     """
     shot, candidates = Shot.from_observation(observation, settings), {}  # analysed once
     search, seeds = settings.sampler, None
@@ -217,14 +286,14 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
         candidates[cohorts] = (problem, estimate, log_likelihood, bic)
     chosen = min(candidates, key=lambda k: candidates[k][3])
     bic = {k: c[3] for k, c in candidates.items()}
-    choice = {
-        "chosen": chosen,
-        "map_log_likelihood": {k: c[2] for k, c in candidates.items()},
-        "bic": bic,
-        "undecided": bool(resolved and abs(bic[2] - bic[1]) < BIC_UNDECIDED),
-        "canopy_extent_m": extent,
-        "pulse_width_m": width,
-    }
+    choice = CohortChoice(
+        chosen=chosen,
+        map_log_likelihood={k: c[2] for k, c in candidates.items()},
+        bic=bic,
+        undecided=bool(resolved and abs(bic[2] - bic[1]) < BIC_UNDECIDED),
+        canopy_extent_m=extent,
+        pulse_width_m=width,
+    )
     return candidates[chosen][0], candidates[chosen][1], choice
 
 
@@ -242,7 +311,8 @@ def nested_start(space1, u1, space2) -> np.ndarray | None:
 
 
 def _invert(observation, settings, rng, progress, backend_path) -> InversionResult:
-    problem, start, report = prepare_problem(observation, settings, rng)
+    prepared = prepare_problem(observation, settings, rng)
+    problem = prepared.problem
     backend = None
     if backend_path is not None:
         name = f"shot_{observation.shot_id}"
@@ -254,14 +324,12 @@ def _invert(observation, settings, rng, progress, backend_path) -> InversionResu
         problem.settings.sampler,
         backend=backend,
         progress=progress,
-        start=start,
+        start=prepared.start,
         coordinates=problem.space.signature(),
     )
-    run.flags.extend(report["notes"])
-    if "seconds" in report:
-        run.seconds["discrepancy"] = report["seconds"]
+    run.flags.extend(prepared.notes)
+    if prepared.discrepancy_seconds is not None:
+        run.seconds["discrepancy"] = prepared.discrepancy_seconds
     result = collect_result(problem, run, rng)
-    for key in ("cohorts", "competing_grounds", "instrument_floor"):
-        if key in report:
-            result.diagnostics[key] = report[key]
+    result.diagnostics.update(prepared.diagnostics())
     return result

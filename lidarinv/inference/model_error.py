@@ -14,8 +14,6 @@ covariance's inverse. The raise is reported, as a misfit the model did not expla
 import numpy as np
 from scipy.optimize import brentq
 
-from .likelihood.gaussian import model_moments
-
 #: How the result's flag begins where the error was raised.
 MODEL_ERROR_FLAG = "model error raised"
 
@@ -59,17 +57,18 @@ def floor_for_residuals(residuals, base_variance, unit_variance, floor) -> float
     return float(brentq(excess, floor, LARGEST_FLOOR, xtol=_TOLERANCE))
 
 
-def shot_floor(pilot, estimate, covariance, unit_variance, floor) -> float:
+def shot_floor(pilot, likelihood, estimate, unit_variance, floor) -> float:
     """η for a shot: :func:`floor_for_residuals` at the pilot posterior's MAP.
 
     Parameters
     ----------
     pilot : LogPosterior
         The posterior the MAP search maximised.
+    likelihood : Likelihood
+        The shot's likelihood under the simulated discrepancy, without the instrument
+        model's error: its predictive moments give the residuals and their variance.
     estimate : MapEstimate or None
-        Its MAP (unbounded coordinates); η₀ where there is none.
-    covariance : array (bins, bins) (DN²)
-        The simulated discrepancy.
+        The pilot's MAP (unbounded coordinates); η₀ where there is none.
     unit_variance : array (bins,) (DN²)
         The instrument model's error variance per bin at η = 1.
     floor : float
@@ -81,19 +80,17 @@ def shot_floor(pilot, estimate, covariance, unit_variance, floor) -> float:
     """
     if estimate is None:
         return float(floor)
-    space, like = pilot.space, pilot.likelihood
+    space = pilot.space
     x, _ = space.from_unbounded(np.asarray(estimate.u, float)[None, :])
     terms = pilot.evaluate(x, keep_signal=True)
     if not np.isfinite(terms.log_posterior[0]):
         return float(floor)
     values = space.values(x)
-    gain = values["gain"] if "gain" in values else terms.gain_fit[:, 1]
-    mean, variance = model_moments(
-        terms.signal, gain, values["baseline"], values["noise_sigma"], like.shot_factor,
-        np.diag(covariance)[None, :],
-    )  # fmt: skip
-    exact = like.data.exact
-    residuals = (like.data.samples - mean[0])[exact]
+    if "gain" not in values:
+        values["gain"] = terms.gain_fit[:, 1]
+    mean, variance = likelihood.predictive_moments(terms.signal, values)
+    exact = likelihood.data.exact
+    residuals = (likelihood.data.samples - mean[0])[exact]
     return floor_for_residuals(residuals, variance[0][exact], unit_variance[exact], floor)
 
 

@@ -71,7 +71,7 @@ class LogPosterior:
             )
         if model.axis.shape != likelihood.data.axis.shape:
             raise ValueError("the expected model's heights do not match the window's axis")
-        if ("gain" in space.marginalised) != (likelihood.gain_marginal is not None):
+        if ("gain" in space.marginalised) != likelihood.marginalises_gain:
             raise ValueError("a gain marginalised in the space needs a likelihood given its prior")
         self.space, self.model, self.likelihood = space, model, likelihood
         low, high = (float(b) for b in favd_range)
@@ -105,20 +105,18 @@ class LogPosterior:
         """The shot's window (:class:`.shot.WindowData`)."""
         return self.likelihood.data
 
-    def with_fixed_discrepancy(self, fixed_discrepancy) -> "LogPosterior":
-        """The same posterior with another fixed discrepancy in its likelihood.
+    def with_likelihood(self, likelihood) -> "LogPosterior":
+        """The same prior and model with another likelihood of the same window (e.g. the
+        likelihood's ``with_fixed_discrepancy`` under a simulated discrepancy).
 
         Parameters
         ----------
-        fixed_discrepancy : array (bins,) or (bins, bins) (DN²)
-            A variance per bin or a covariance between bins, e.g. of
-            :func:`lidarinv.inference.realisations.realisation_covariance`.
+        likelihood : Likelihood
 
         Returns
         -------
         LogPosterior
         """
-        likelihood = self.likelihood.with_fixed_discrepancy(fixed_discrepancy)
         return LogPosterior(self.space, self.model, likelihood, self.favd_range)
 
     def evaluate(self, x, keep_signal=False) -> Evaluation:

@@ -14,16 +14,15 @@ import numpy as np
 from forward.expected import ExpectedWaveformModel
 from lidarinv.observe.observation import Observation
 
+from .likelihood import LIKELIHOODS
 from .likelihood.discrepancy import DISCREPANCY_MODELS
-from .likelihood.gaussian import ShotLikelihood, correlation_obstacle
-from .likelihood.marginal import gain_marginal_obstacle
 from .model.parameters import DEFAULT_STRUCTURE_PRIORS, default_space
 from .model.stand import StandMapping, default_template
 from .model.two_cohort import TwoCohortMapping
 from .model.waveform import ShotModel
 from .posterior import LogPosterior
 from .settings import AUTO, InversionSettings
-from .shot import Shot
+from .shot import Shot, WindowData
 
 #: The stand mapping of each count of height cohorts.
 MAPPINGS = {1: StandMapping, 2: TwoCohortMapping}
@@ -65,20 +64,18 @@ class InversionProblem:
     def instrument(self):
         return self.shot.instrument
 
-    def with_fixed_discrepancy(self, fixed_discrepancy) -> "InversionProblem":
-        """The same problem with another fixed discrepancy in its likelihood.
+    def with_likelihood(self, likelihood) -> "InversionProblem":
+        """The same problem with another likelihood of its window.
 
         Parameters
         ----------
-        fixed_discrepancy : array (bins,) or (bins, bins) (DN²)
-            A variance per bin or a covariance between bins.
+        likelihood : Likelihood
 
         Returns
         -------
         InversionProblem
         """
-        post = self.log_posterior.with_fixed_discrepancy(fixed_discrepancy)
-        return InversionProblem(self.shot, post, self.settings)
+        return replace(self, log_posterior=self.log_posterior.with_likelihood(likelihood))
 
 
 def fixed_discrepancy(shot: Shot, settings: InversionSettings, smooth_bins=1.0):
@@ -113,6 +110,49 @@ def fixed_discrepancy(shot: Shot, settings: InversionSettings, smooth_bins=1.0):
     if function is None:
         return None
     return function(shot.window.samples, shot.noise_mean, smooth_bins, settings.discrepancy)
+
+
+def likelihood_class(name: str):
+    """The likelihood registered as ``name`` (:data:`.likelihood.LIKELIHOODS`).
+
+    Raises
+    ------
+    ValueError
+        For an unknown name.
+    """
+    try:
+        return LIKELIHOODS[name]
+    except KeyError:
+        raise ValueError(f"unknown likelihood {name!r}; known: {sorted(LIKELIHOODS)}") from None
+
+
+def parameter_overrides(settings, holds_noise, gain_obstacle, noise_estimates) -> dict:
+    """The parameter overrides of an inversion: the noise held where it is not sampled,
+    the gain integrated out where it can be, then the settings' own priors.
+
+    Parameters
+    ----------
+    settings : InversionSettings
+        ``sample_noise``, ``marginalise_gain`` and ``priors``.
+    holds_noise : bool
+        The likelihood holds the noise at the shot's estimates (whitened read noise).
+    gain_obstacle : str or None
+        Why the likelihood cannot integrate the gain out; None if it can.
+    noise_estimates : dict
+        ``{"baseline": {"fixed": b̂}, "noise_sigma": {"fixed": σ̂}}``, the shot's.
+
+    Returns
+    -------
+    dict
+        ``{name: {"prior": …, "fixed": …, "marginalised": …}}`` for
+        :func:`.model.parameters.default_space`.
+    """
+    held = not settings.sample_noise or holds_noise
+    overrides = {**(noise_estimates if held else {}), **settings.priors}
+    if settings.marginalise_gain and overrides.get("gain", {}).get("fixed") is None:
+        if gain_obstacle is None:
+            overrides["gain"] = {**overrides.get("gain", {}), "marginalised": True}
+    return overrides
 
 
 def build_problem(obs: Observation, settings: InversionSettings | None = None) -> InversionProblem:
@@ -156,22 +196,13 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
         settings = replace(settings, cohorts=1)
     top = DEFAULT_STRUCTURE_PRIORS["top_height"]
     nuisance = shot.nuisance_priors(settings.ground_prior_sd_m, (top.lower, top.upper))
-    correlation = shot.noise_correlation() if settings.correlated_noise else None
     fixed = fixed_discrepancy(shot, settings)
-    # under whitened correlated noise a sampled σn would fit the whitened residuals, not
-    # the noise's marginal σ that the whitening assumes: the noise is held at its estimate
-    correlated = correlation is not None and correlation.order > 0
-    if correlated:
-        scale = settings.discrepancy if fixed is None else 0.0
-        correlated = correlation_obstacle(shot.window, settings.shot_factor, scale) is None
-    overrides = {
-        **shot.noise_overrides(settings.sample_noise and not correlated),
-        **settings.priors,
-    }
-    if settings.marginalise_gain and overrides.get("gain", {}).get("fixed") is None:
-        scale = settings.discrepancy if fixed is None else 0.0
-        if gain_marginal_obstacle(shot.window, settings.shot_factor, scale) is None:
-            overrides["gain"] = {**overrides.get("gain", {}), "marginalised": True}
+    likelihood = likelihood_class(settings.likelihood).for_shot(
+        shot.window, shot.analysis.noise, settings, fixed
+    )
+    overrides = parameter_overrides(
+        settings, likelihood.holds_noise, likelihood.gain_obstacle, shot.noise_estimates()
+    )
     backend = settings.model.backend
     instrument = shot.instrument
     space = default_space(
@@ -187,14 +218,47 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
         instrument, shot.window.axis, mapping.template, mapping.model_free, settings.model
     )
     gain = space.by_name["gain"]
-    likelihood = ShotLikelihood(
-        shot.window,
-        settings.shot_factor,
-        settings.discrepancy,
-        fixed,
-        gain.prior if gain.marginalised else None,
-        correlation,
-    )
+    if gain.marginalised:
+        likelihood = likelihood.with_gain_prior(gain.prior)
     favd_range = (0.0, np.inf) if settings.favd_range is None else settings.favd_range
     post = LogPosterior(space, ShotModel(mapping, expected), likelihood, favd_range)
     return InversionProblem(shot, post, settings)
+
+
+def sampled_dimensions(settings: InversionSettings, measured_pulse: bool = True) -> int:
+    """Coordinates the sampler moves for ``settings`` on a shot whose every bin is exactly
+    recorded, before any shot is read (e.g. to check a walker count): the parameter space
+    of :func:`problem_for_shot` with the noise sampled unless the settings hold it, and
+    two height cohorts for ``cohorts="auto"`` (the larger model it may choose).
+
+    Parameters
+    ----------
+    settings : InversionSettings
+    measured_pulse : bool
+        The shot carries its transmitted waveform (as GEDI and LVIS files do): the pulse's
+        broadening is sampled too.
+
+    Returns
+    -------
+    int
+    """
+    from .model.priors import Uniform
+
+    bins = 3
+    window = WindowData(np.arange(float(bins)), np.zeros(bins), np.zeros(bins, bool),
+                        np.zeros(bins, bool))  # fmt: skip
+    fixed = None if DISCREPANCY_MODELS.get(settings.discrepancy_model) is None else np.zeros(bins)
+    likelihood = likelihood_class(settings.likelihood).for_shot(window, None, settings, fixed)
+    estimates = {"baseline": {"fixed": 0.0}, "noise_sigma": {"fixed": 1.0}}
+    overrides = parameter_overrides(settings, False, likelihood.gain_obstacle, estimates)
+    placeholder = Uniform(0.0, 1.0)
+    nuisance = {name: placeholder for name in ("ground_elevation", "baseline")}
+    nuisance.update(gain=Uniform(1.0, 2.0), noise_sigma=Uniform(1.0, 2.0))
+    if measured_pulse and settings.use_measured_pulse:
+        nuisance["pulse_broadening"] = placeholder
+    cohorts = 1 if settings.cohorts == 1 else 2
+    space = default_space(
+        nuisance, overrides, settings.ridges, settings.unbounded, settings.tallest_stem,
+        cohorts=cohorts,
+    )  # fmt: skip
+    return space.ndim

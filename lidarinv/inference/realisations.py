@@ -26,6 +26,7 @@ explains: C keeps the spread that remains, a Gaussian one, without the skew.
 """
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -211,6 +212,22 @@ def discrepancy_covariance(residuals, shrinkage) -> np.ndarray:
     return (1.0 - shrinkage) * second + shrinkage * np.diag(np.diag(second))
 
 
+@dataclass(frozen=True)
+class SimulatedDiscrepancy:
+    """How a discrepancy covariance was simulated.
+
+    Attributes
+    ----------
+    seconds : float (s)
+        The simulation's wall time.
+    estimate : MapEstimate
+        The pilot posterior's MAP search it was simulated about.
+    """
+
+    seconds: float
+    estimate: object
+
+
 def realisation_covariance(
     pilot: LogPosterior, instrument, rng, settings: RealisationSettings | None = None,
     sampler=None, estimate=None,
@@ -233,11 +250,11 @@ def realisation_covariance(
     Returns
     -------
     covariance : array (bins, bins) (DN²)
-        C of :func:`discrepancy_covariance`, for :meth:`.posterior.LogPosterior.
-        with_fixed_discrepancy`.
-    report : dict
-        ``seconds`` (the simulation's wall time), ``map_converged`` and ``estimate`` (the
-        pilot's MAP search, whose optimum the sampler may start from).
+        C of :func:`discrepancy_covariance`, for the likelihood's
+        ``with_fixed_discrepancy``.
+    simulation : SimulatedDiscrepancy
+        The simulation's wall time and the pilot's MAP search, whose optimum the sampler
+        may start from.
     """
     settings = RealisationSettings() if settings is None else settings
     sampler = SamplerSettings() if sampler is None else sampler
@@ -253,9 +270,4 @@ def realisation_covariance(
         pilot, instrument, x, rng, settings.plot_diameters, settings.accuracy
     )
     covariance = discrepancy_covariance(residuals, settings.shrinkage)
-    report = {
-        "seconds": time.perf_counter() - clock,
-        "map_converged": estimate.converged,
-        "estimate": estimate,
-    }
-    return covariance, report
+    return covariance, SimulatedDiscrepancy(time.perf_counter() - clock, estimate)

@@ -56,7 +56,7 @@ class InversionResult:
     version : str
     replicated : array (5, n_bins) or None
         Quantiles of replicated observations (DN): the posterior predictive with the
-        noise and the model discrepancy (:func:`.collect.replicate_observation`); None
+        noise and the model discrepancy (the likelihood's ``replicate``); None
         in files written before it was stored.
     saturated : array of bool or None
         Window samples at the digitiser maximum (censored from above).

@@ -172,6 +172,8 @@ class InversionSettings:
     model : forward.expected.ModelSettings
         Its ``backend`` also chooses the inversion's compiled or numpy paths (stand
         mapping, ridge maps).
+    likelihood : str
+        The likelihood, by name (:data:`.likelihood.LIKELIHOODS`): ``"gaussian"``.
     footprint_cover_draws : int
         Posterior samples given a draw of the footprint's own crown cover,
         ``footprint_cover`` (:func:`.realisations.footprint_cover`: an explicit stand each,
@@ -201,6 +203,7 @@ class InversionSettings:
     realisations: RealisationSettings = field(default_factory=RealisationSettings)
     tallest_stem: bool = False
     cohorts: int | str = AUTO
+    likelihood: str = "gaussian"
     footprint_cover_draws: int = 0
 
     def __post_init__(self):

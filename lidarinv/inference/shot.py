@@ -5,7 +5,8 @@ its transmit pulse, if any), analyses the waveform (noise, signal extent, ground
 :func:`lidarinv.observe.analyse.analyse`), chooses the window of bins the likelihood reads
 (:class:`WindowData`) and keeps the noise estimates. Everything later stages need from the
 observation comes from here: the shot's nuisance priors (:meth:`Shot.nuisance_priors`),
-the noise held fixed where it is not sampled (:meth:`Shot.noise_overrides`), the window.
+the noise estimates held where the noise is not sampled (:meth:`Shot.noise_estimates`),
+the window.
 """
 
 from dataclasses import dataclass, replace
@@ -18,7 +19,7 @@ from lidarinv.observe.ground_return import fit_ground_return, registered_ground
 from lidarinv.observe.instrument import shot_instrument
 from lidarinv.observe.observation import Observation
 
-from .likelihood.ar_noise import AutoregressiveNoise, integrated_time
+from .likelihood.ar_noise import integrated_time
 
 #: The pulse broadening's prior: its sd (m) about the lower flank's fit, and its upper end.
 BROADENING_PRIOR_SD_M, BROADENING_UPPER_M = 0.25, 4.0
@@ -218,20 +219,6 @@ class Shot:
         """The noise σ̂ (DN) of the analysis."""
         return float(self.analysis.noise_sigma)
 
-    def noise_correlation(self):
-        """The read noise's correlation as the AR(1) with its measured integrated
-        autocorrelation time (:mod:`.likelihood.ar_noise`); white where the noise came
-        from the file's fields (they hold no autocorrelation).
-
-        Returns
-        -------
-        AutoregressiveNoise
-        """
-        noise = self.analysis.noise
-        if noise is None or noise.source != "samples":
-            return AutoregressiveNoise.white()
-        return AutoregressiveNoise.matching_integrated_time(noise.autocorrelation)
-
     def nuisance_priors(self, ground_prior_sd_m=None, top_range=(1.0, 80.0)) -> dict:
         """The shot's priors on the observation model and on the top height.
 
@@ -302,20 +289,14 @@ class Shot:
         centre = min(self.broadening, upper)
         return {"pulse_broadening": TruncatedNormal(centre, BROADENING_PRIOR_SD_M, 0.0, upper)}
 
-    def noise_overrides(self, sample_noise=True) -> dict:
-        """The noise mean and σ held at the shot's estimates where they are not sampled.
-
-        Parameters
-        ----------
-        sample_noise : bool
+    def noise_estimates(self) -> dict:
+        """The noise mean and σ held at the shot's estimates, as parameter overrides.
 
         Returns
         -------
         dict
-            ``{"baseline": {"fixed": b̂}, "noise_sigma": {"fixed": σ̂}}``, or ``{}``.
+            ``{"baseline": {"fixed": b̂}, "noise_sigma": {"fixed": σ̂}}``.
         """
-        if sample_noise:
-            return {}
         return {
             "baseline": {"fixed": self.noise_mean},
             "noise_sigma": {"fixed": self.noise_sigma},

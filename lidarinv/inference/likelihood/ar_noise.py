@@ -121,6 +121,24 @@ class AutoregressiveNoise:
             return cls.white()
         return cls(np.array([phi]), 1.0 - phi**2, np.array([1.0, phi]))
 
+    @classmethod
+    def of_measured(cls, noise) -> "AutoregressiveNoise":
+        """The noise model of a shot's measured noise: the AR(1) with its integrated
+        autocorrelation time (:meth:`matching_integrated_time`); white where the noise
+        came from a file's fields, which hold no autocorrelation.
+
+        Parameters
+        ----------
+        noise : lidarinv.observe.NoiseModel or None
+
+        Returns
+        -------
+        AutoregressiveNoise
+        """
+        if noise is None or noise.source != "samples":
+            return cls.white()
+        return cls.matching_integrated_time(noise.autocorrelation)
+
     @property
     def integrated_time(self) -> float:
         """τ = 1 + 2·Σ R(k) of the process (its spectral density at zero frequency)."""

@@ -4,21 +4,26 @@ Per the physics conventions, y_j = b + a·W_j + ε_j with ε_j ~ N(0, σn² + g�
 model-discrepancy term (:mod:`.discrepancy`) adds to the variance, for the difference
 between the one random arrangement of trees in a footprint and the expected stand.
 Samples set to the floor are censored, log Φ((floor − μ)/s); samples at the digitiser
-maximum are censored from above, log Φ((μ − max)/s). The exactly recorded bins are
-summed by a compiled kernel (:func:`gaussian_exact`): the sampler asks for a few rows at
-a time, where numpy's per-call cost, not arithmetic, would set the price.
+maximum are censored from above, log Φ((μ − max)/s); the row terms are in
+:mod:`.gaussian_rows`. The likelihood owns its noise model (:meth:`ShotLikelihood.for_shot`)
+and answers the questions of :class:`.protocol.Likelihood`.
 """
 
-import math
+from functools import cached_property
 
 import numpy as np
-from scipy.special import log_ndtr
-
-from forward.backends import jit
 
 from ..shot import WindowData
+from . import conditional
+from .ar_noise import AutoregressiveNoise
 from .covariance import Rotation, covariance_obstacle
-from .marginal import _HALF_LOG_2PI, GainMarginal, _unit, gain_marginal_obstacle, linear_fit
+from .gaussian_rows import model_moments, row_log_likelihood
+from .marginal import (
+    GainMarginal,
+    gain_marginal_obstacle,
+    linear_fit,
+)
+from .predictive import gaussian_replicates, recorded
 
 
 class ShotLikelihood:
@@ -141,6 +146,157 @@ class ShotLikelihood:
             self.noise_correlation,
         )  # fmt: skip
 
+    @classmethod
+    def for_shot(cls, window, noise, settings, fixed_discrepancy=None) -> "ShotLikelihood":
+        """The likelihood of a shot's window, with the noise model fitted to its measured
+        noise (the registry's constructor, :data:`lidarinv.inference.likelihood.LIKELIHOODS`).
+
+        Parameters
+        ----------
+        window : WindowData
+        noise : lidarinv.observe.NoiseModel or None
+            The shot's measured noise (σ, autocorrelation and where they came from).
+        settings : InversionSettings
+            ``shot_factor``, ``discrepancy`` (η) and ``correlated_noise``.
+        fixed_discrepancy : array (bins,) or (bins, bins) (DN²), optional
+
+        Returns
+        -------
+        ShotLikelihood
+            Without a gain prior (:meth:`with_gain_prior` adds one).
+        """
+        correlation = AutoregressiveNoise.of_measured(noise) if settings.correlated_noise else None
+        return cls(
+            window, settings.shot_factor, settings.discrepancy, fixed_discrepancy, None, correlation
+        )
+
+    def with_gain_prior(self, gain_prior) -> "ShotLikelihood":
+        """The same likelihood with the gain integrated out against ``gain_prior``."""
+        return ShotLikelihood(
+            self.data, self.shot_factor, self.discrepancy, self.fixed_discrepancy, gain_prior,
+            self.noise_correlation,
+        )  # fmt: skip
+
+    @property
+    def holds_noise(self) -> bool:
+        """The read noise is whitened, so its mean and σ are held at the shot's estimates
+        (a sampled σn would fit the whitened residuals, not the noise's marginal σ)."""
+        return self.whitening is not None
+
+    @property
+    def marginalises_gain(self) -> bool:
+        """The gain is integrated out (a gain prior was given)."""
+        return self.gain_marginal is not None
+
+    @property
+    def gain_obstacle(self) -> str | None:
+        """Why the gain cannot be integrated out exactly here, or None if it can."""
+        return gain_marginal_obstacle(self.data, self.shot_factor, self.discrepancy_scale)
+
+    @property
+    def conditioning_obstacle(self) -> str | None:
+        """Why the discrepancy cannot be drawn given the data, or None if it can
+        (:func:`.conditional.conditioning_obstacle`)."""
+        return conditional.conditioning_obstacle(self)
+
+    @property
+    def notes(self) -> list:
+        """Where the likelihood had to simplify the shot's noise, what it did."""
+        if self.correlation_obstacle is None:
+            return []
+        return [f"read noise taken as white: {self.correlation_obstacle}"]
+
+    def predictive_moments(self, signal, values) -> tuple:
+        """Mean and per-bin variance of the samples given rows of model waveforms.
+
+        Parameters
+        ----------
+        signal : array (n, bins)
+            Model waveforms W.
+        values : dict of arrays (n,)
+            ``gain``, ``baseline`` and ``noise_sigma`` (DN).
+
+        Returns
+        -------
+        mean, variance : arrays (n, bins) (DN, DN²)
+            b + a·W, and the noise, shot noise and model discrepancy (a covariance's
+            diagonal) per bin.
+        """
+        fixed = self.fixed_discrepancy
+        if fixed is None:
+            extra = (self.discrepancy * np.asarray(values["gain"])[:, None] * signal) ** 2
+        elif fixed.ndim == 2:  # a covariance: its diagonal, per bin
+            extra = np.diag(fixed)
+        else:
+            extra = fixed
+        return model_moments(
+            signal, values["gain"], values["baseline"], values["noise_sigma"], self.shot_factor,
+            extra,
+        )  # fmt: skip
+
+    def replicate(self, signal, values, rng) -> tuple:
+        """One replicated observation per row of model waveforms.
+
+        Parameters
+        ----------
+        signal : array (n, bins)
+            Model waveforms W.
+        values : dict of arrays (n,)
+            ``gain``, ``baseline`` and ``noise_sigma`` (DN).
+        rng : numpy.random.Generator
+
+        Returns
+        -------
+        draws : array (n, bins) (DN)
+            :meth:`predictive_moments`' mean plus noise of its variance, correlated from
+            bin to bin as the likelihood takes it (the read noise where it is whitened, a
+            discrepancy covariance as simulated; the rest white), set to the floor or the
+            digitiser maximum where the product would have set it.
+        mean, variance : arrays (n, bins)
+            The predictive moments they were drawn from.
+        """
+        mean, variance = self.predictive_moments(signal, values)
+        fixed = self.fixed_discrepancy
+        draws = gaussian_replicates(
+            mean, variance, values["noise_sigma"], rng,
+            noise_covariance=(
+                None if self.whitening is None else self.whitening.covariance(mean.shape[1])
+            ),
+            discrepancy_covariance=fixed if fixed is not None and fixed.ndim == 2 else None,
+        )  # fmt: skip
+        return recorded(draws, self.data), mean, variance
+
+    @cached_property
+    def _from_basis(self):
+        return conditional.from_basis_matrix(self)
+
+    def discrepancy_given_data(self, signal, values, rng) -> np.ndarray:
+        """Draws of the footprint's discrepancy d | y, one per row
+        (:func:`.conditional.discrepancy_given_data`).
+
+        Parameters
+        ----------
+        signal : array (n, bins)
+            Model waveforms W.
+        values : dict of arrays (n,)
+            ``gain``, ``baseline`` and ``noise_sigma`` (DN).
+        rng : numpy.random.Generator
+
+        Returns
+        -------
+        array (n, bins) (DN)
+            d on the window's bins; the footprint's noise-free waveform is a·W + d.
+
+        Raises
+        ------
+        ValueError
+            Where :attr:`conditioning_obstacle` is not None.
+        """
+        obstacle = self.conditioning_obstacle
+        if obstacle is not None:
+            raise ValueError(f"the discrepancy cannot be drawn given the data: {obstacle}")
+        return conditional.discrepancy_given_data(self, signal, values, rng, self._from_basis)
+
     def log_likelihood(self, signal, values):
         """Log-likelihood of rows of model waveforms.
 
@@ -231,137 +387,3 @@ def correlation_obstacle(data: WindowData, shot_factor, discrepancy_scale) -> st
     if discrepancy_scale > 0:
         return "the discrepancy is proportional to each row's model"
     return covariance_obstacle(data, shot_factor)
-
-
-def row_log_likelihood(
-    data: WindowData,
-    signal,
-    gain,
-    baseline,
-    noise_sigma,
-    shot_factor=0.0,
-    discrepancy_scale=0.0,
-    fixed_variance=None,
-    unit=None,
-) -> np.ndarray:
-    """Log-likelihood of model waveforms ``signal`` W (n, bins), the fast path.
-
-    Parameters
-    ----------
-    data : WindowData
-        The window's samples (DN) and which are censored or saturated.
-    signal : array (n, bins)
-        Model waveforms W (apparent reflectance per bin).
-    gain, baseline, noise_sigma : array (n,) (DN per unit reflectance, DN, DN)
-    shot_factor : float (DN)
-        g, shot-noise variance per unit signal.
-    discrepancy_scale : float
-        η of a discrepancy proportional to each row's model.
-    fixed_variance : array (bins,) (DN²), optional
-        A variance fixed for the shot (e.g. a discrepancy's, :mod:`.discrepancy`).
-    unit : array (bins,), optional
-        The baseline's pattern in a rotated basis (:mod:`.covariance`, where every bin
-        is exact); ones by default.
-
-    Returns
-    -------
-    array (n,)
-
-    Notes
-    -----
-    y_j ~ N(b·1_j + a·W_j, σn² + g·a·W_j + (η·a·W_j)² + v_j) over the exactly recorded
-    bins (compiled, :func:`gaussian_exact`), censored bins log Φ((floor − μ)/s) and
-    saturated ones log Φ((μ − max)/s) (numpy). ``tests/testing.py`` holds the slow
-    reference it is checked against.
-    """
-    fixed = np.zeros(data.axis.size) if fixed_variance is None else fixed_variance
-    total = gaussian_exact(
-        signal, gain, baseline, noise_sigma, shot_factor, discrepancy_scale, fixed, data, unit
-    )
-    limited = data.censored | data.saturated
-    if limited.any():
-        part = signal[:, limited]
-        extra = fixed[limited] + (discrepancy_scale * np.asarray(gain)[:, None] * part) ** 2
-        mean, variance = model_moments(part, gain, baseline, noise_sigma, shot_factor, extra)
-        sd = np.sqrt(variance)
-        c, s = data.censored[limited], data.saturated[limited]
-        total += np.sum(log_ndtr((data.floor - mean[:, c]) / sd[:, c]), axis=1)
-        total += np.sum(log_ndtr((mean[:, s] - data.saturation) / sd[:, s]), axis=1)
-    return total
-
-
-def model_moments(signal, gain, baseline, noise_sigma, shot_factor=0.0, extra_variance=0.0):
-    """Mean and variance of the samples for model waveforms.
-
-    Parameters
-    ----------
-    signal : array (n, bins)
-        The noise-free waveform W (apparent reflectance per bin).
-    gain, baseline, noise_sigma : array (n,) (DN per unit reflectance, DN, DN)
-    shot_factor : float (DN)
-        g.
-    extra_variance : float or array (n, bins) (DN²)
-        Added, e.g. a model discrepancy (:mod:`.discrepancy`).
-
-    Returns
-    -------
-    mean, variance : arrays (n, bins) (DN, DN²)
-        b + a·W and σn² + g·a·W + extra (physics conventions, "Observation model").
-    """
-    scaled = np.asarray(gain)[:, None] * signal
-    variance = np.asarray(noise_sigma)[:, None] ** 2 + shot_factor * scaled + extra_variance
-    return np.asarray(baseline)[:, None] + scaled, variance
-
-
-@jit
-def _gaussian_exact(signal, gain, baseline, noise_sigma, shot_factor, scale, fixed, y, exact, unit):
-    n, bins = signal.shape
-    out = np.zeros(n)
-    for r in range(n):
-        a, b, s2 = gain[r], baseline[r], noise_sigma[r] ** 2
-        total = 0.0
-        for j in range(bins):
-            if not exact[j]:
-                continue
-            w = a * signal[r, j]
-            variance = s2 + shot_factor * w + fixed[j] + (scale * w) ** 2
-            resid = y[j] - b * unit[j] - w
-            total -= 0.5 * (resid * resid / variance + math.log(variance)) + _HALF_LOG_2PI
-        out[r] = total
-    return out
-
-
-def gaussian_exact(signal, gain, baseline, noise_sigma, shot_factor, scale, fixed, data, unit=None):
-    """Log-likelihood of the exactly recorded bins (compiled).
-
-    Parameters
-    ----------
-    signal : array (n, bins)
-    gain, baseline, noise_sigma : array (n,)
-    shot_factor : float (DN)
-    scale : float
-        η of a discrepancy proportional to the model (0 for none).
-    fixed : array (bins,) (DN²)
-        A discrepancy variance fixed for the shot (zeros for none).
-    data : WindowData
-    unit : array (bins,), optional
-        The baseline's pattern, ones by default; in a rotated basis (:mod:`.covariance`)
-        the rotated ones.
-
-    Returns
-    -------
-    array (n,)
-        Σ_j over exact bins of log N(y_j; b·unit_j + a·W_j, σn² + g·a·W_j + v_j + (η·a·W_j)²).
-    """
-    return _gaussian_exact(
-        np.ascontiguousarray(signal, dtype=np.float64),
-        np.ascontiguousarray(gain, dtype=np.float64),
-        np.ascontiguousarray(baseline, dtype=np.float64),
-        np.ascontiguousarray(noise_sigma, dtype=np.float64),
-        float(shot_factor),
-        float(scale),
-        np.ascontiguousarray(fixed, dtype=np.float64),
-        np.ascontiguousarray(data.samples, dtype=np.float64),
-        np.ascontiguousarray(data.exact),
-        _unit(unit, data),
-    )

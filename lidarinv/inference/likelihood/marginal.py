@@ -28,14 +28,14 @@ from scipy.special import log_ndtr
 
 from forward.backends import jit
 
-from ..model.prior_table import _log_prior_form
+from ..model.prior_table import log_prior_form
 
-_HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
+HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
 _SQRT2 = math.sqrt(2.0)
 
 
-def _unit(unit, data):
+def baseline_pattern(unit, data):
     """The baseline's pattern over the bins of ``data``: ones unless given."""
     if unit is None:
         return np.ones(data.samples.size)
@@ -212,7 +212,7 @@ def linear_fit(signal, baseline, noise_sigma, fixed, data, unit=None) -> np.ndar
         np.ascontiguousarray(noise_sigma, dtype=np.float64),
         np.ascontiguousarray(fixed, dtype=np.float64),
         np.ascontiguousarray(data.samples, dtype=np.float64),
-        _unit(unit, data),
+        baseline_pattern(unit, data),
     )
 
 
@@ -250,7 +250,7 @@ def _gain_log_likelihood(fit, unit, log_weights, span, form):
             mean = (best * precision + w_mean * prior_precision) / both
             gap = (best - w_mean) ** 2 / (s * s + w_sd * w_sd) if prior_precision > 0 else 0.0
             root = math.sqrt(both)
-            out[r] += -log_norm - 0.5 * gap - math.log(root) + _HALF_LOG_2PI
+            out[r] += -log_norm - 0.5 * gap - math.log(root) + HALF_LOG_2PI
             moments[r, 0], moments[r, 1] = mean, 1.0 / root
             log_mass[r] = _log_gaussian_mass((lower - mean) * root, (upper - mean) * root)
             continue
@@ -262,7 +262,7 @@ def _gain_log_likelihood(fit, unit, log_weights, span, form):
         for i in range(k):
             z = lo + (hi - lo) * unit[i]
             weights[i] = log_weights[i] - 0.5 * z * z
-            terms[i] = weights[i] + _log_prior_form(
+            terms[i] = weights[i] + log_prior_form(
                 best + s * z, lower, upper, True, w_mean, w_sd, log_norm
             )
             top_w, top_t = max(top_w, weights[i]), max(top_t, terms[i])
@@ -273,7 +273,7 @@ def _gain_log_likelihood(fit, unit, log_weights, span, form):
         for i in range(k):
             sum_w += math.exp(weights[i] - top_w)
             sum_t += math.exp(terms[i] - top_t)
-        out[r] += math.log(s) + _HALF_LOG_2PI + top_t + math.log(sum_t) - top_w - math.log(sum_w)
+        out[r] += math.log(s) + HALF_LOG_2PI + top_t + math.log(sum_t) - top_w - math.log(sum_w)
         moments[r, 0], moments[r, 1] = best, s
         log_mass[r] = _log_gaussian_mass(z_lo, z_hi)
     return out, moments, log_mass

@@ -38,7 +38,7 @@ class PriorForm:
 
 
 @jit
-def _log_prior_form(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
+def log_prior_form(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
     """log p(x) of a prior in the common form of :class:`PriorForm`."""
     if not (lower <= x <= upper):
         return -math.inf
@@ -53,7 +53,7 @@ def _prior_log_pdf(x, lower, upper, log_scale, w_mean, w_sd, log_norm):
     out = np.empty((n, k))
     for r in range(n):
         for c in range(k):
-            out[r, c] = _log_prior_form(
+            out[r, c] = log_prior_form(
                 x[r, c], lower[c], upper[c], log_scale[c], w_mean[c], w_sd[c], log_norm[c]
             )
     return out
