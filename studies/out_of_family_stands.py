@@ -29,7 +29,7 @@ estimate them:
 
 - ``footprint_top_height``: the tallest stem within 2 σf of the beam centre, against the
   posterior's tallest stem drawn within the same disc
-  (:func:`lidarinv.inference.collect.footprint_top_height`); the "top height" of the
+  (:func:`lidarinv.inference.results.collect.footprint_top_height`); the "top height" of the
   issue's target;
 - ``rh98``: RH98 of the true noise-free waveform, against the posterior's RH98 of its
   model waveform (both in the GEDI L2A convention);
@@ -37,7 +37,7 @@ estimate them:
   under at least one crown (:func:`forward.footprint.footprint_crown_cover`), against the
   posterior's crown cover, whose expectation over a stationary stand's footprints it is,
   and against the posterior's ``footprint_cover``, the same footprint quantity of a
-  realisation of each sample's stand (:func:`lidarinv.inference.realisations.
+  realisation of each sample's stand (:func:`lidarinv.inference.passes.realisations.
   footprint_cover`), which can be 0 (no crown within reach) or 1 (every node covered)
   as the truth can; the "cover" of the target;
 - ``gap_cover``: 1 − P̄(0)/P_u of the simulated footprint, against the posterior's

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lidarinv.inference.model_error import MODEL_ERROR_FLAG
+from lidarinv.inference.passes.model_error import MODEL_ERROR_FLAG
 from lidarinv.io import iter_observations, read_gedi_l2a, read_gedi_l2b, read_lvis_l2
 from lidarinv.observe import Observation, analyse
 
@@ -35,7 +35,7 @@ HERE = Path(__file__).resolve().parent
 #: Comparisons: label → (posterior quantity, product value). ``rh98`` is the model
 #: waveform's RH98; ``rh98_model_convention`` the product's moved by what its convention
 #: adds on the shot's own waveform; ``rh98_product`` the posterior's RH98 in the product's
-#: convention (:func:`lidarinv.inference.product_metrics.product_relative_heights`);
+#: convention (:func:`lidarinv.inference.results.product_metrics.product_relative_heights`);
 #: ``rh98_footprint`` the RH98 of the footprint's own waveform, the expected one plus the
 #: discrepancy drawn given the data (:mod:`lidarinv.inference.likelihood.conditional`).
 QUANTITIES = {
@@ -378,7 +378,7 @@ def _json(value):
 
 def _predictive_figures(records, results, out):
     """The typical and worst shot of each instrument and its most multi-layered one."""
-    from lidarinv.inference.plots import predictive_plot
+    from lidarinv.inference.results.plots import predictive_plot
 
     for instrument in ("gedi", "lvis"):
         done = [r for r in records if r["instrument"] == instrument and "posterior" in r]

@@ -55,7 +55,6 @@ from lidarinv.inference import (  # noqa: E402
     build_problem,
     invert_shot,
 )
-from lidarinv.inference.hidden_ground import HIDDEN_GROUND_FLAG  # noqa: E402
 from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS, SIMULATED  # noqa: E402
 from lidarinv.inference.model.parameters import (  # noqa: E402
     DEFAULT_STRUCTURE_PRIORS,
@@ -65,6 +64,7 @@ from lidarinv.inference.model.parameters import (  # noqa: E402
 )
 from lidarinv.inference.model.priors import Uniform  # noqa: E402
 from lidarinv.inference.model.stand import TOP_SDS, StandMapping, default_template  # noqa: E402
+from lidarinv.inference.passes.hidden_ground import HIDDEN_GROUND_FLAG  # noqa: E402
 from lidarinv.observe.analyse import analyse  # noqa: E402
 
 #: The truth each posterior quantity is held to, where its name differs: the footprint's

@@ -4,8 +4,13 @@ import numpy as np
 import pytest
 
 from forward.pulse import GaussianPulse, MeasuredPulse
-from lidarinv.inference.ambiguity import MASS_WINDOW, competing_grounds, describe, pulse_width_m
 from lidarinv.inference.model.parameters import default_space
+from lidarinv.inference.passes.ambiguity import (
+    MASS_WINDOW,
+    competing_grounds,
+    describe,
+    pulse_width_m,
+)
 from lidarinv.inference.sampling.start import MapEstimate, laplace_covariance
 
 

@@ -6,7 +6,7 @@ import pytest
 from forward import instrument_preset
 from forward.pulse import GaussianPulse
 from lidarinv.inference import InversionSettings
-from lidarinv.inference.hidden_ground import hidden_ground_note, widest_ground_flank_m
+from lidarinv.inference.passes.hidden_ground import hidden_ground_note, widest_ground_flank_m
 from lidarinv.inference.shot import Shot
 from lidarinv.observe import Observation
 

@@ -4,7 +4,7 @@ them and stays at its least value where the noise explains them."""
 import numpy as np
 import pytest
 
-from lidarinv.inference.model_error import LARGEST_FLOOR, describe_floor, floor_for_residuals
+from lidarinv.inference.passes.model_error import LARGEST_FLOOR, describe_floor, floor_for_residuals
 
 
 def _shot(rng, eta, bins=4000):

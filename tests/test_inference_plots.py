@@ -3,19 +3,21 @@ floor and saturation marked and explained, labelled truths, titles that state th
 quantiles and do not overlap, units written one way."""
 
 from dataclasses import replace
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from tiny_results import tiny_result
 
-from lidarinv.inference.collect import fit_statistics, replicate_observation
-from lidarinv.inference.plots import corner_plot, predictive_plot
+from lidarinv.inference.likelihood.gaussian import ShotLikelihood
+from lidarinv.inference.results.collect import fit_statistics
+from lidarinv.inference.results.plots import corner_plot, predictive_plot
 from lidarinv.inference.shot import WindowData
 from lidarinv.plotting import unit_label
 
 
-def _likelihood(n_bins, floor=np.nan, saturation=np.nan, censored=None, fixed=None, eta=0.0):
+def _likelihood(
+    n_bins, floor=np.nan, saturation=np.nan, censored=None, fixed=None, eta=0.0, noise=None
+):
     censored = np.zeros(n_bins, bool) if censored is None else censored
     data = WindowData(
         axis=np.arange(n_bins, dtype=float),
@@ -25,7 +27,7 @@ def _likelihood(n_bins, floor=np.nan, saturation=np.nan, censored=None, fixed=No
         floor=floor,
         saturation=saturation,
     )
-    return SimpleNamespace(data=data, fixed_discrepancy=fixed, discrepancy=eta, shot_factor=0.0)
+    return ShotLikelihood(data, discrepancy=eta, fixed_discrepancy=fixed, noise_correlation=noise)
 
 
 def test_replicated_observations_carry_the_likelihoods_variance():
@@ -35,7 +37,7 @@ def test_replicated_observations_carry_the_likelihoods_variance():
     values = {"gain": np.full(n, 1000.0), "baseline": np.full(n, 50.0),
               "noise_sigma": np.full(n, 2.0)}  # fmt: skip
     covariance = np.diag(np.arange(bins, dtype=float)) + 0.5  # a discrepancy between bins
-    draws, _, _ = replicate_observation(_likelihood(bins, fixed=covariance), signal, values, rng)
+    draws, _, _ = _likelihood(bins, fixed=covariance).replicate(signal, values, rng)
     mean = 50.0 + 1000.0 * signal[0]
     np.testing.assert_allclose(draws.mean(axis=0), mean, atol=0.05)
     expected_sd = np.sqrt(4.0 + np.diag(covariance))  # σn² + the discrepancy's diagonal
@@ -43,7 +45,7 @@ def test_replicated_observations_carry_the_likelihoods_variance():
     # the discrepancy is correlated between bins as simulated, not drawn bin by bin
     np.testing.assert_allclose(np.cov(draws.T), 4.0 * np.eye(bins) + covariance, atol=0.1)
     # a discrepancy proportional to the model: (η a W)²
-    per_row, _, _ = replicate_observation(_likelihood(bins, eta=0.2), signal, values, rng)
+    per_row, _, _ = _likelihood(bins, eta=0.2).replicate(signal, values, rng)
     np.testing.assert_allclose(
         per_row.std(axis=0), np.sqrt(4.0 + (0.2 * 1000.0 * signal[0]) ** 2), rtol=0.02
     )
@@ -55,9 +57,10 @@ def test_replicated_read_noise_is_correlated_as_the_likelihood_takes_it():
     rng = np.random.default_rng(4)
     n, bins = 20_000, 12
     ar = AutoregressiveNoise.matching_integrated_time(0.8 ** np.arange(40))
-    like = SimpleNamespace(**vars(_likelihood(bins, fixed=np.zeros(bins))), whitening=ar)
+    like = _likelihood(bins, fixed=np.zeros(bins), noise=ar)
+    assert like.holds_noise  # the read noise is whitened in the likelihood
     values = {"gain": np.ones(n), "baseline": np.zeros(n), "noise_sigma": np.full(n, 2.0)}
-    draws, _, _ = replicate_observation(like, np.zeros((n, bins)), values, rng)
+    draws, _, _ = like.replicate(np.zeros((n, bins)), values, rng)
     np.testing.assert_allclose(draws.std(axis=0), 2.0, rtol=0.03)
     lag1 = np.mean(draws[:, 1:] * draws[:, :-1]) / 4.0
     assert lag1 == pytest.approx(ar.autocorrelation(2)[1], abs=0.02)
@@ -70,7 +73,7 @@ def test_replicated_observations_stop_at_the_floor_and_the_digitiser_maximum():
               "noise_sigma": np.full(n, 3.0)}  # fmt: skip
     censored = np.array([True, False, False, False])
     post = _likelihood(bins, floor=9.0, saturation=12.0, censored=censored)
-    draws, _, _ = replicate_observation(post, np.zeros((n, bins)), values, rng)
+    draws, _, _ = post.replicate(np.zeros((n, bins)), values, rng)
     assert draws.min() == 9.0 and draws.max() == 12.0
     assert np.mean(draws == 12.0) == pytest.approx(1 - 0.7475, abs=0.02)  # P(N(10, 3) > 12)
 

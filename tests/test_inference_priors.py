@@ -17,7 +17,7 @@ from lidarinv.inference.model.priors import (
     Uniform,
     make_prior,
 )
-from lidarinv.io.priors_file import read_priors_file
+from lidarinv.inference.priors_file import read_priors_file
 
 PRIORS = [
     Uniform(-2.0, 3.0),

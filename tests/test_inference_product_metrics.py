@@ -5,7 +5,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lidarinv.inference.product_metrics import product_relative_heights
+from lidarinv.inference.results.product_metrics import product_relative_heights
 from lidarinv.observe import processing_settings, rh_metrics
 from lidarinv.observe.signal import smooth
 

@@ -16,7 +16,7 @@ from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, SamplerSettings, build_problem, invert_shot
 from lidarinv.inference.likelihood.covariance import Rotation
 from lidarinv.inference.likelihood.gaussian import ShotLikelihood
-from lidarinv.inference.realisations import (
+from lidarinv.inference.passes.realisations import (
     discrepancy_covariance,
     footprint_cover,
     realisation_residuals,

@@ -9,15 +9,15 @@ from forward.realise import realise
 from forward.stand import Stand
 from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, build_problem
-from lidarinv.inference import realisations as realisations_module
 from lidarinv.inference.model.stand import StandMapping, default_template
 from lidarinv.inference.model.tallest_stem import (
     TALLEST_STEM,
     TALLEST_STEM_POSITION,
     tallest_stem_within,
 )
+from lidarinv.inference.passes import realisations as realisations_module
+from lidarinv.inference.passes.realisations import realisation_residuals
 from lidarinv.inference.posterior import LogPosterior
-from lidarinv.inference.realisations import realisation_residuals
 
 SIGMA_F = 5.5  # m, GEDI-like footprint σ
 VALUES = {

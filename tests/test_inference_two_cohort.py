@@ -9,11 +9,15 @@ import pytest
 from forward import poisson_stand
 from lidarinv.examples import SYNTHETIC_SHOTS, ShotRecipe, synthetic_shot
 from lidarinv.inference import InversionSettings
-from lidarinv.inference.invert import STOREYS_RESOLVED_PULSE_WIDTHS, choose_cohorts, nested_start
 from lidarinv.inference.model.parameters import default_space
 from lidarinv.inference.model.priors import Uniform
 from lidarinv.inference.model.stand import StandMapping, default_template
 from lidarinv.inference.model.two_cohort import COHORT2, TwoCohortMapping
+from lidarinv.inference.passes.cohorts import (
+    STOREYS_RESOLVED_PULSE_WIDTHS,
+    choose_cohorts,
+    nested_start,
+)
 from lidarinv.inference.problem import problem_for_shot
 from lidarinv.inference.shot import Shot
 

@@ -92,7 +92,7 @@ print(again.summary()["cover"])
 # The outer band is where replicated observations fall (the model mean plus the noise
 # and the model discrepancy): about 90 % of the observed samples should lie in it. The
 # inner band is the model mean alone. The right panel shows the residuals.
-from lidarinv.inference.plots import corner_plot, predictive_plot
+from lidarinv.inference.results.plots import corner_plot, predictive_plot
 
 predictive_plot(result)
 

@@ -60,6 +60,6 @@ print(
 # %%
 # The posterior predictive check: the observed samples against the band of replicated
 # observations (noise and discrepancy included), with the residuals beside.
-from lidarinv.inference.plots import predictive_plot
+from lidarinv.inference.results.plots import predictive_plot
 
 figure = predictive_plot(result)

@@ -123,7 +123,7 @@ def _check_outputs(args) -> None:
 
 def run(args) -> int:
     from lidarinv.inference import invert_shot
-    from lidarinv.inference.plots import save_plots
+    from lidarinv.inference.results.plots import save_plots
 
     if (args.file is None) == (args.example is None):
         raise ValueError("give a waveform file or --example NAME (one of them)")

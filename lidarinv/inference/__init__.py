@@ -12,9 +12,8 @@
 that are not priors.
 """
 
-from lidarinv.io.priors_file import read_priors_file
+from lidarinv.inference.priors_file import read_priors_file
 
-from .collect import collect_result
 from .invert import invert_shot, prepare_problem
 from .likelihood.gaussian import ShotLikelihood, model_moments
 from .model.parameters import default_space
@@ -24,7 +23,8 @@ from .model.stand import StandMapping, default_template
 from .model.waveform import ShotModel
 from .posterior import BLOB_NAMES, LogPosterior
 from .problem import InversionProblem, build_problem
-from .result import InversionResult
+from .results.collect import collect_result
+from .results.result import InversionResult
 from .sampling import SamplerSettings, find_map, run_sampler
 from .settings import InversionSettings, RealisationSettings
 from .shot import Shot, WindowData

@@ -169,7 +169,7 @@ def build_problem(obs: Observation, settings: InversionSettings | None = None) -
         With the discrepancy the observation fixes (a ``realisations`` discrepancy starts
         from ``observed``: :func:`.invert.prepare_problem` simulates it). A problem holds
         one stand model: with ``cohorts="auto"`` the one-cohort one, which
-        :func:`.invert.choose_cohorts` weighs against the two-cohort one.
+        :func:`.passes.cohorts.choose_cohorts` weighs against the two-cohort one.
 
     Raises
     ------

@@ -4,23 +4,20 @@
 :class:`RealisationSettings` (the simulated discrepancy), ``SamplerSettings``
 (:mod:`.sampling.sampler`) and :class:`forward.expected.ModelSettings` nested in it. A
 priors file holds, beside the parameters' priors, tables that set some of these
-(:data:`SETTINGS_TABLES`: ``[favd]``, ``[ground]``, ``[discrepancy]``), read here.
+(:data:`.priors_file.SETTINGS_TABLES`: ``[favd]``, ``[ground]``, ``[discrepancy]``).
 """
 
 from dataclasses import asdict, dataclass, field
 
-import numpy as np
-
 from forward.engine import AccuracySettings
 from forward.expected import ModelSettings
-from lidarinv.io.priors_file import read_priors_file, read_toml
 from lidarinv.observe.processing import ProcessingSettings
 
-from .likelihood.discrepancy import DISCREPANCY_MODELS
 from .model.coordinates import DEFAULT_RIDGES
 from .model.prior_table import DEFAULT_UNBOUNDED
 from .model.tallest_stem import TALLEST_STEM_LATENTS
 from .model.two_cohort import COHORT2
+from .priors_file import read_priors_file, read_settings_tables
 from .sampling.sampler import SamplerSettings
 
 #: ``InversionSettings.cohorts`` for a stand model chosen per shot by evidence.
@@ -147,7 +144,7 @@ class InversionSettings:
         Height cohorts of the stand: 1, one truncated-normal height family; 2, a lower
         storey beside it (:mod:`.model.two_cohort`), for multi-layer canopies and
         emergents; ``"auto"`` (the default), the one with the lower BIC at its MAP
-        (:func:`.invert.choose_cohorts`; one MAP search more). A priors file turns 2 on
+        (:func:`.passes.cohorts.choose_cohorts`; one MAP search more). A priors file turns 2 on
         with a table for a parameter of :data:`.model.two_cohort.COHORT2`.
     favd_range : (float, float) (m²/m³) or None
         Prior support of the implied foliage area volume density, a joint constraint on
@@ -167,7 +164,7 @@ class InversionSettings:
         The posterior is the same; only the coordinates the ensemble moves in change.
     priors : dict
         Parameter overrides ``{name: {"prior": …, "fixed": …}}`` (see
-        :func:`lidarinv.io.priors_file.read_priors_file`).
+        :func:`lidarinv.inference.priors_file.read_priors_file`).
     sampler : SamplerSettings
     model : forward.expected.ModelSettings
         Its ``backend`` also chooses the inversion's compiled or numpy paths (stand
@@ -219,8 +216,8 @@ class InversionSettings:
         Parameters
         ----------
         path : path
-            A TOML priors file: parameter tables (:func:`lidarinv.io.priors_file.
-            read_priors_file`) and the settings tables of :data:`SETTINGS_TABLES`.
+            A TOML priors file: parameter tables (:func:`lidarinv.inference.priors_file.
+            read_priors_file`) and the settings tables of :data:`.priors_file.SETTINGS_TABLES`.
         **changes
             Other settings; a file's table does not override one given here.
 
@@ -274,78 +271,3 @@ class InversionSettings:
             for name, change in self.priors.items()
         }
         return out
-
-
-def read_settings_tables(path) -> dict:
-    """The settings tables of a priors file (:data:`SETTINGS_TABLES`), checked.
-
-    Parameters
-    ----------
-    path : path
-        TOML priors file.
-
-    Returns
-    -------
-    dict
-        ``"favd"``: ``{"range": (lower, upper)}`` (m²/m³); ``"ground"``:
-        ``{"prior_sd": value}`` (m); ``"discrepancy"``: any of ``model``, ``eta`` and
-        ``count``; for the tables the file has.
-
-    Raises
-    ------
-    ValueError
-        Naming the file, the table and the problem.
-    """
-    table = read_toml(path)
-    return {
-        name: reader(path, table[name]) for name, reader in SETTINGS_TABLES.items() if name in table
-    }
-
-
-def _favd_range(path, spec) -> dict:
-    unknown = sorted(set(spec) - {"lower", "upper"})
-    if unknown:
-        raise ValueError(f"{path}: [favd] takes lower and upper (m2/m3), not {unknown}")
-    low, high = float(spec.get("lower", 0.0)), float(spec.get("upper", np.inf))
-    if not (0.0 <= low < high):
-        raise ValueError(f"{path}: [favd] needs 0 <= lower < upper, got {low}, {high}")
-    return {"range": (low, high)}
-
-
-def _ground_prior(path, spec) -> dict:
-    unknown = sorted(set(spec) - {"prior_sd"})
-    if unknown:
-        raise ValueError(f"{path}: [ground] takes prior_sd (m), not {unknown}")
-    sd = float(spec.get("prior_sd", np.nan))
-    if not (np.isfinite(sd) and sd > 0):
-        raise ValueError(f"{path}: [ground] prior_sd must be a positive number of metres")
-    return {"prior_sd": sd}
-
-
-def _discrepancy(path, spec) -> dict:
-    unknown = sorted(set(spec) - {"model", "eta", "count"})
-    if unknown:
-        raise ValueError(f"{path}: [discrepancy] takes model, eta and count, not {unknown}")
-    out = {}
-    if "model" in spec:
-        if spec["model"] not in DISCREPANCY_MODELS:
-            raise ValueError(
-                f"{path}: [discrepancy] model {spec['model']!r} is not one of "
-                f"{sorted(DISCREPANCY_MODELS)}"
-            )
-        out["model"] = spec["model"]
-    if "eta" in spec:
-        eta = float(spec["eta"])
-        if not (np.isfinite(eta) and eta >= 0):
-            raise ValueError(f"{path}: [discrepancy] eta must be a number ≥ 0")
-        out["eta"] = eta
-    if "count" in spec:
-        count = spec["count"]
-        if not (isinstance(count, int) and count >= 2):
-            raise ValueError(f"{path}: [discrepancy] count must be an integer ≥ 2")
-        out["count"] = count
-    return out
-
-
-#: Priors-file tables that set InversionSettings rather than a parameter's prior.
-SETTINGS_TABLES = {"favd": _favd_range, "ground": _ground_prior, "discrepancy": _discrepancy}

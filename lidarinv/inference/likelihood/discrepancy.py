@@ -13,7 +13,7 @@ holds one. The difference enters the likelihood as an extra variance per bin, a 
     pull the parameters.
 ``realisations``
     A covariance between bins simulated from explicit realisations around a pilot MAP
-    (:mod:`lidarinv.inference.realisations`); the pilot uses ``observed``.
+    (:mod:`lidarinv.inference.passes.realisations`); the pilot uses ``observed``.
 
 The spread of a Poisson stand seen through a Gaussian footprint is
 :func:`forward.poisson_stand.footprint_gap_cv2` (``studies/discrepancy.py``).

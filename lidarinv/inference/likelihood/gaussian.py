@@ -141,7 +141,7 @@ class ShotLikelihood:
         -------
         ShotLikelihood
         """
-        return ShotLikelihood(
+        return type(self)(
             self.data, self.shot_factor, self.discrepancy, fixed_discrepancy, self.gain_prior,
             self.noise_correlation,
         )  # fmt: skip
@@ -172,7 +172,7 @@ class ShotLikelihood:
 
     def with_gain_prior(self, gain_prior) -> "ShotLikelihood":
         """The same likelihood with the gain integrated out against ``gain_prior``."""
-        return ShotLikelihood(
+        return type(self)(
             self.data, self.shot_factor, self.discrepancy, self.fixed_discrepancy, gain_prior,
             self.noise_correlation,
         )  # fmt: skip

@@ -15,7 +15,7 @@ import numpy as np
 
 from lidarinv.observe.signal import smooth
 
-from .model.waveform import relative_heights
+from ..model.waveform import relative_heights
 
 
 def product_relative_heights(mean, axis, ground, baseline, analysis, processing, levels):

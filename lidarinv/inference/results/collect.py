@@ -5,14 +5,14 @@ import numpy as np
 
 from lidarinv.observe import processing_settings
 
-from .model.tallest_stem import disc_area
-from .model.waveform import RH_LEVELS, relative_heights
-from .posterior import BLOB_NAMES, BLOB_UNITS
-from .problem import InversionProblem
+from ..model.tallest_stem import disc_area
+from ..model.waveform import RH_LEVELS, relative_heights
+from ..passes.realisations import footprint_cover
+from ..posterior import BLOB_NAMES, BLOB_UNITS
+from ..problem import InversionProblem
+from ..sampling.sampler import SamplerRun
 from .product_metrics import product_relative_heights
-from .realisations import footprint_cover
 from .result import QUANTILES, InversionResult
-from .sampling.sampler import SamplerRun
 
 #: Posterior samples used for the predictive band and the crown-volume profile.
 _BAND_SAMPLES = 400

@@ -320,7 +320,7 @@ class InversionResult:
 
 
 def _stand_model_line(choice) -> str:
-    """The summary's line on the stand model :func:`.invert.choose_cohorts` chose."""
+    """The summary's line on the stand model :func:`..passes.cohorts.choose_cohorts` chose."""
     if len(choice["bic"]) == 1 and "canopy_extent_m" in choice:  # two storeys not searched
         extent, width = choice["canopy_extent_m"], choice["pulse_width_m"]
         return (

@@ -11,7 +11,7 @@ shows in the posterior and in the diagnostics instead of being left unexplored.
 
 import numpy as np
 
-from .sampling.start import MapEstimate, Mode, laplace_covariance
+from ..sampling.start import MapEstimate, Mode, laplace_covariance
 
 #: Largest log ratio of Laplace masses exp(log p)·√det Σ at which another optimum still
 #: counts as an explanation: a posterior odds of 1 : 20 (log 20 ≈ 3).

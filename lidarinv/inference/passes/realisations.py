@@ -35,17 +35,17 @@ from forward.expected.vectors import CONDITIONING_FIELDS, FIELD_INDEX, params_fr
 from forward.footprint import footprint_crown_cover
 from forward.realise import realise, scene_extras
 
-from .model.tallest_stem import (
+from ..model.tallest_stem import (
     NO_STEM_DEPTH_M,
     TALLEST_STEM,
     TALLEST_STEM_LATENTS,
     TALLEST_STEM_POSITION,
     tallest_stem_within,
 )
-from .posterior import LogPosterior
-from .sampling.sampler import SamplerSettings
-from .sampling.start import Mode, find_map, initial_ball
-from .settings import RealisationSettings
+from ..posterior import LogPosterior
+from ..sampling.sampler import SamplerSettings
+from ..sampling.start import Mode, find_map, initial_ball
+from ..settings import RealisationSettings
 
 
 def realisation_residuals(

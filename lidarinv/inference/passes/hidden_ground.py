@@ -18,7 +18,7 @@ import numpy as np
 from lidarinv.observe.ground import HALF_MAXIMUM_PER_SIGMA, lower_flank_width
 from lidarinv.observe.ground_return import DENSITY_STEP_M, broadened_densities
 
-from .shot import BROADENING_UPPER_M
+from ..shot import BROADENING_UPPER_M
 
 #: Bins by which the measured flank may exceed the widest ground return's and still be
 #: taken as a ground return: the measurement counts whole bins to the half maximum (one
