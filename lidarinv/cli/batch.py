@@ -92,7 +92,8 @@ def _check_outputs(args) -> None:
         check_new_files([(results, "file")], args.overwrite)  # not ours: never resumed
     resumed = results.exists() and not args.overwrite and is_results_file(results)
     ours = resumed and is_summary_csv(summary)
-    check_new_files([(summary, "summary CSV")], args.overwrite or ours or not summary.exists())
+    where = f"file {summary}, where the summary CSV of {results.name} goes,"
+    check_new_files([(summary, where)], args.overwrite or ours or not summary.exists())
     check_folder_writable(results, "results file")
 
 
@@ -162,7 +163,8 @@ def run(args) -> int:
     existed = True  # until known: an interruption then removes nothing
     try:
         existed = _start_afresh(args)
-        announce_compilation("lidarinv batch")
+        if args.invert is None:  # the default inversion: its kernels compile in each worker
+            announce_compilation("lidarinv batch")
         summary = invert_many(
             items,
             settings,

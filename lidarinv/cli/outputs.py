@@ -47,7 +47,8 @@ def check_new_files(outputs, overwrite: bool) -> list:
     for path, what in outputs:
         if path.is_dir():
             raise ValueError(f"cannot write {what} {path}: it is a folder")
-    existing = [f"{what} {path}" for path, what in outputs if path.exists()]
+    existing = [what if str(path) in what else f"{what} {path}" for path, what in outputs
+                if path.exists()]  # fmt: skip
     if existing and not overwrite:
         many = len(existing) > 1
         shown = ", ".join(existing[:5]) + (f" and {len(existing) - 5} more" if many else "")
