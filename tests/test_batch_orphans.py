@@ -70,7 +70,7 @@ def test_workers_end_when_a_batch_is_killed(tmp_path):
         assert all(_alive(pid) for pid in workers)
         batch.send_signal(signal.SIGKILL)
         batch.wait(timeout=10)
-        survivors = lambda: [pid for pid in workers if _alive(pid)]  # noqa: E731
+        survivors = lambda: [pid for pid in workers if _alive(pid)]
         assert _wait_for(lambda: not survivors(), 10), f"workers {survivors()} outlived the batch"
     finally:
         if batch.poll() is None:

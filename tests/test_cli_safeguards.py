@@ -18,7 +18,7 @@ from tiny_results import tiny_result
 import lidarinv.inference
 from lidarinv.batch.progress import ProgressBar
 from lidarinv.cli import main
-from lidarinv.cli.kernels import NOTICE, cold_kernels
+from lidarinv.cli.kernels import NOTICE, announce_compilation, cold_kernels
 from lidarinv.inference import InversionResult
 from lidarinv.io import example_file, write_observations
 from lidarinv.io.formats import inspect_file
@@ -266,7 +266,20 @@ def test_a_cold_kernel_is_found_and_warm_once_compiled(tmp_path, monkeypatch):
     sys.modules.pop("tiny_kernel_for_cache_test", None)
 
 
+def test_the_notice_needs_most_kernels_cold(monkeypatch, capsys):
+    from forward import backends
+
+    monkeypatch.setattr(backends, "_DISPATCHERS", dict.fromkeys("abcd"))
+    monkeypatch.setattr("lidarinv.cli.kernels.cold_kernels", lambda: ["a"])
+    assert not announce_compilation()  # one kernel a first run did not call
+    monkeypatch.setattr("lidarinv.cli.kernels.cold_kernels", lambda: ["a", "b", "c"])
+    assert announce_compilation("lidarinv invert")
+    assert capsys.readouterr().err == f"lidarinv invert: {NOTICE}\n"
+
+
 def test_invert_says_it_compiles_before_the_first_sampling(tmp_path, capsys, monkeypatch):
+    from forward import backends
+
     said = []
 
     def invert(observation, settings=None, **_):
@@ -274,7 +287,7 @@ def test_invert_says_it_compiles_before_the_first_sampling(tmp_path, capsys, mon
         return tiny_result(observation.shot_id)
 
     monkeypatch.setattr(lidarinv.inference, "invert_shot", invert)
-    monkeypatch.setattr("lidarinv.cli.kernels.cold_kernels", lambda: ["a kernel"])
+    monkeypatch.setattr("lidarinv.cli.kernels.cold_kernels", lambda: list(backends._DISPATCHERS))
     args = ["invert", "--example", "gedi-mixed", "--quiet", "-o", str(tmp_path / "p.h5")]
     assert main(args) == 0
     assert said == [f"lidarinv invert: {NOTICE}\n"]

@@ -162,7 +162,7 @@ def run(args) -> int:
     if override:
         print(f"lidarinv invert: warning: {override}", file=sys.stderr)
     rng = np.random.default_rng(args.seed)
-    failures = 0
+    failures, announced = 0, False
     for item in _selected(args, rng):
         if isinstance(item, ShotError):
             print(f"shot {item.shot_id}: skipped: {item.reason}")
@@ -172,7 +172,8 @@ def run(args) -> int:
         _check_outputs(args, [item.shot_id])  # the first shot's id, known now
         for note in _sample_notes(item):
             print(f"lidarinv invert: shot {item.shot_id}: {note}", file=sys.stderr)
-        announce_compilation("lidarinv invert")
+        if not announced:
+            announced = announce_compilation("lidarinv invert")
         try:
             result = invert_shot(item, settings, rng=rng, progress=not args.quiet)
         except ValueError as error:

@@ -9,6 +9,9 @@ cache. :func:`announce_compilation` prints one line to stderr before that minute
 import os
 import sys
 
+#: Share of the registered kernels that must be uncached for the notice.
+COLD_SHARE = 0.5
+
 #: The line printed before a cold compilation.
 NOTICE = "compiling numerical kernels (first run only; numba keeps them in its cache)…"
 
@@ -36,9 +39,12 @@ def cold_kernels() -> list:
 
 
 def announce_compilation(prefix="lidarinv", stream=None) -> bool:
-    """Print :data:`NOTICE` to ``stream`` (stderr) when kernels will be compiled; returns
-    whether it did."""
-    if not cold_kernels():
+    """Print :data:`NOTICE` to ``stream`` (stderr) when most kernels will be compiled
+    (at least :data:`COLD_SHARE` of them uncached); returns whether it did."""
+    from forward import backends
+
+    cold = cold_kernels()
+    if not cold or len(cold) < COLD_SHARE * len(backends._DISPATCHERS):
         return False
     print(f"{prefix}: {NOTICE}", file=stream or sys.stderr, flush=True)
     return True
