@@ -15,7 +15,8 @@ import h5py
 from . import gedi_l1b, lvis_l1b, waveforms
 from .simulation import is_simulation
 
-#: Format name → module with ``detect``, ``beams``, ``count_shots`` and ``iter_shots``.
+#: Format name → module with ``detect``, ``instrument``, ``beams``, ``count_shots`` and
+#: ``iter_shots``.
 FORMATS = {
     waveforms.NAME: waveforms,
     gedi_l1b.NAME: gedi_l1b,
@@ -88,12 +89,6 @@ def _hdf5_reason(error) -> str:
     return text.removeprefix("Unable to synchronously open file ").strip() or type(error).__name__
 
 
-def instrument_of(handle, name: str) -> str | None:
-    """The instrument that the file of format ``name`` says recorded it (None when the
-    layout does not say), from its layout alone, not from its sample values."""
-    return FORMATS[name].instrument(handle)
-
-
 @dataclass(frozen=True)
 class FileSummary:
     """What a waveform file is, known before any shot is read.
@@ -104,7 +99,9 @@ class FileSummary:
     format : str
         Name in :data:`FORMATS`.
     instrument : str or None
-        The preset the file's layout names (``None`` when it does not say).
+        The preset the file's layout names (``None`` when it does not say): from the
+        format (GEDI L1B, LVIS L1B) or ``/instrument`` (lidarinv files), never from the
+        sample values.
     beams : list
         The beams to be read (``[None]`` for a format without beams).
     n_shots : int
