@@ -22,6 +22,12 @@ from tests.fake_inversion import fake_observations
 INVERT_EXAMPLE = ["invert", "--example", "gedi-mixed", "--quiet"]
 
 
+@pytest.fixture(autouse=True)
+def warm_kernels(monkeypatch):
+    """The sampler is faked here: no compilation notice (tested on its own)."""
+    monkeypatch.setattr("lidarinv.cli.kernels.cold_kernels", lambda: [])
+
+
 @pytest.fixture
 def fake_inversion(monkeypatch):
     """Replace the sampler by an instant one and count its calls."""

@@ -15,6 +15,12 @@ it starts a worker (``distributed.nanny.pre-spawn-environ``); the Dask task sets
 where they are missing, which only helps libraries that read them later (a library
 already loaded keeps its thread pool: the limitation of setting them inside a task).
 A user-supplied executor is used as it is: its workers keep their thread settings.
+
+Orphans: a local worker ends itself when the coordinator dies, even by ``SIGKILL`` (a
+scheduler's or a timeout's), which gives it no chance to stop its pool: each worker
+watches its parent's pid from a daemon thread (:func:`watch_parent`, every
+:data:`PARENT_POLL_S`; portable, unlike Linux's ``PR_SET_PDEATHSIG``, which would also
+fire when the thread that started the worker ends).
 """
 
 import concurrent.futures as cf
@@ -115,10 +121,46 @@ def run_task(invert, observation, settings, seed) -> TaskOutcome:
 
 _SHARED = {}
 
+#: Seconds between a worker's checks that its coordinator is alive.
+PARENT_POLL_S = 0.5
 
-def _init_worker(invert, settings) -> None:
+#: Exit status of a worker whose coordinator died.
+ORPHAN_EXIT = 75
+
+
+def watch_parent(parent: int, interval: float = PARENT_POLL_S) -> threading.Thread:
+    """End this process (``os._exit``) as soon as its parent is no longer ``parent``: the
+    coordinator died and the worker was handed to another process.
+
+    Parameters
+    ----------
+    parent : int
+        Pid of the coordinator that started this process.
+    interval : float (s)
+        Time between checks.
+
+    Returns
+    -------
+    threading.Thread
+        The daemon thread that watches.
+    """
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(interval)
+        os._exit(ORPHAN_EXIT)
+
+    thread = threading.Thread(target=watch, name="lidarinv-parent-watch", daemon=True)
+    thread.start()
+    return thread
+
+
+def _init_worker(invert, settings, parent=None) -> None:
     """Process-pool initializer: one thread per library, shared data stored once; Ctrl-C
-    is left to the coordinator, which stops the workers (no traceback from each)."""
+    is left to the coordinator, which stops the workers (no traceback from each); the
+    worker ends when the coordinator ``parent`` (a pid) dies."""
+    if parent is not None:
+        watch_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.update(THREAD_ENV)
     # tqdm would create a multiprocessing lock here, which a worker ended by Ctrl-C
@@ -127,6 +169,28 @@ def _init_worker(invert, settings) -> None:
 
     tqdm.set_lock(threading.RLock())
     _SHARED["invert"], _SHARED["settings"] = invert, settings
+
+
+@dataclass(frozen=True)
+class WithFlag:
+    """An inversion whose every result carries one more warning ``flag`` (e.g. that the
+    user overrode the file's instrument); picklable where ``invert`` is.
+
+    Parameters
+    ----------
+    invert : callable
+        ``invert(observation, settings, rng=..., progress=...)``.
+    flag : str
+        Appended to ``result.flags``.
+    """
+
+    invert: object
+    flag: str
+
+    def __call__(self, observation, settings=None, *, rng=None, progress=False):
+        result = self.invert(observation, settings, rng=rng, progress=progress)
+        result.flags.append(self.flag)
+        return result
 
 
 def _run_shared(observation, seed) -> TaskOutcome:
@@ -184,7 +248,7 @@ class ProcessBackend:
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_init_worker,
-            initargs=self._initargs,
+            initargs=(*self._initargs, os.getpid()),
         )
 
     def submit(self, observation, seed):

@@ -35,6 +35,8 @@ class BatchSummary:
         reason, for the shots that failed in this run.
     stopped_early : bool
         True if ``max_shots`` stopped the run before the input was exhausted.
+    beams : dict
+        Shot id → beam, for the failed shots of a format with beams.
     """
 
     output: Path
@@ -45,6 +47,7 @@ class BatchSummary:
     seconds: float = 0.0
     failed: dict = field(default_factory=dict)
     stopped_early: bool = False
+    beams: dict = field(default_factory=dict)
 
     @property
     def shots_per_second(self) -> float:
@@ -71,6 +74,12 @@ class _Task:
     attempts: int = 0
     generation: int = 0
     alone: bool = False
+
+
+def beam_of(item):
+    """The beam of a shot (an Observation or a ShotError), None for formats without."""
+    beam = getattr(item, "metadata", {}).get("beam")
+    return None if beam is None else str(beam)
 
 
 def shot_seed_key(shot_id) -> int:
@@ -144,16 +153,21 @@ class _Source:
                 if name in self.in_flight:
                     warnings.warn(f"shot id {item.shot_id!r} repeats; skipped", stacklevel=3)
                 self._summary.n_skipped += 1
-                self._bar.advance("skipped")
+                self._bar.skipped()
                 continue
             if isinstance(item, ShotError):
                 reason = f"unreadable: {item.reason}"
-                self._store.write_failed(item.shot_id, reason, index=index, attempts=0)
+                beam = beam_of(item)
+                self._store.write_failed(item.shot_id, reason, index=index, attempts=0,
+                                         beam=beam)  # fmt: skip
                 self._summary.n_failed += 1
                 self._summary.failed[name] = reason
-                self._bar.advance("failed")
+                if beam is not None:
+                    self._summary.beams[name] = beam
+                self._bar.unreadable()
                 continue
             self._new += 1
+            self._bar.started()
             self.in_flight.add(name)
             key = shot_seed_key(item.shot_id)
             seed = np.random.SeedSequence(self._entropy, spawn_key=(key,))
@@ -240,8 +254,9 @@ def invert_many(
         Stop after this many new shots (skipped and unreadable shots do not count);
         rerun to continue.
     total : int, optional
-        Number of input shots, for the progress bar's ETA (default ``len(observations)``
-        when it has one).
+        Number of input shots (default ``len(observations)`` when it has one). The
+        progress bar's total and ETA count only the shots the run will process: at most
+        ``max_shots``, and not those the file already holds.
 
     Returns
     -------
@@ -266,7 +281,7 @@ def invert_many(
     store = ResultStore(output, repr(settings), _callable_name(invert))
     bar = backend = source = None
     try:
-        bar = ProgressBar(total=total, enabled=progress)
+        bar = ProgressBar(total=total, enabled=progress, cap=max_shots)
         source = _Source(observations, store, _root_entropy(rng, store), max_shots, summary, bar)
         backend = make_backend(executor, workers, invert, settings)
         _run(source, backend, store, summary, bar, retries)
@@ -307,11 +322,14 @@ def _run(source, backend, store, summary, bar, retries) -> None:
             submit(task)
 
     def fail(task, reason, text=""):
-        source.in_flight.discard(group_name(task.shot_id))
+        name, beam = group_name(task.shot_id), beam_of(task.observation)
+        source.in_flight.discard(name)
         store.write_failed(task.shot_id, reason, index=task.index, attempts=task.attempts,
-                           traceback_text=text)  # fmt: skip
+                           traceback_text=text, beam=beam)  # fmt: skip
         summary.n_failed += 1
-        summary.failed[group_name(task.shot_id)] = reason
+        summary.failed[name] = reason
+        if beam is not None:
+            summary.beams[name] = beam
         bar.advance("failed")
 
     while True:
@@ -328,7 +346,8 @@ def _run(source, backend, store, summary, bar, retries) -> None:
                     try:
                         store.write_done(task.shot_id, outcome.result, index=task.index,
                                          attempts=task.attempts, seconds=outcome.seconds,
-                                         worker=outcome.worker, seed_key=task.seed_key)  # fmt: skip
+                                         worker=outcome.worker, seed_key=task.seed_key,
+                                         beam=beam_of(task.observation))  # fmt: skip
                     except Exception as write_error:  # a result that cannot be stored
                         fail(task, f"could not store the result: {short_reason(write_error)}")
                         continue

@@ -53,6 +53,24 @@ def csv_path_for(path) -> Path:
     return Path(path).with_suffix(".csv")
 
 
+def is_results_file(path) -> bool:
+    """Whether ``path`` is a batch results file (one a run may resume)."""
+    try:
+        with h5py.File(path, "r") as handle:
+            return handle.attrs.get("content") == CONTENT
+    except OSError:
+        return False
+
+
+def is_summary_csv(path) -> bool:
+    """Whether ``path`` looks like a summary CSV this module wrote (its header)."""
+    try:
+        with open(path, newline="") as handle:
+            return handle.readline().startswith(f"{BASE_COLUMNS[0]},")
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
 def _scalar(value):
     """A JSON-able Python scalar from a NumPy or Python scalar."""
     if isinstance(value, np.generic):
@@ -145,8 +163,10 @@ class ResultStore:
 
     # -- writing -----------------------------------------------------------------------
 
-    def write_done(self, shot_id, result, *, index, attempts, seconds, worker, seed_key):
-        """Store a finished shot: ``result.write(group)`` and the batch attributes."""
+    def write_done(self, shot_id, result, *, index, attempts, seconds, worker, seed_key,
+                   beam=None):  # fmt: skip
+        """Store a finished shot: ``result.write(group)`` and the batch attributes (with
+        the shot's ``beam`` where the format has beams)."""
         name = group_name(shot_id)
         if name in self.shots:
             del self.shots[name]
@@ -162,13 +182,15 @@ class ResultStore:
                   "seconds": float(seconds), "worker": str(worker), "seed_key": str(seed_key),
                   "flags": ";".join(str(f) for f in getattr(result, "flags", [])),
                   "finished_at": time.time(), "summary": row}  # fmt: skip
+        if beam is not None:
+            record["beam"] = str(beam)
         group.attrs["batch"] = json.dumps(record, default=str)  # one attribute: fast
         group.attrs["batch_complete"] = True
         if name in self.failed:
             del self.failed[name]
         self.file.flush()
 
-    def write_failed(self, shot_id, reason, *, index, attempts, traceback_text=""):
+    def write_failed(self, shot_id, reason, *, index, attempts, traceback_text="", beam=None):
         """Record a failed shot with its reason (replaces an earlier record)."""
         name = group_name(shot_id)
         if name in self.failed:
@@ -176,6 +198,8 @@ class ResultStore:
         group = self.failed.create_group(name)
         record = {"shot_id": str(shot_id), "index": int(index), "attempts": int(attempts),
                   "reason": str(reason), "traceback": str(traceback_text)}  # fmt: skip
+        if beam is not None:
+            record["beam"] = str(beam)
         group.attrs["batch"] = json.dumps(record)
         self.file.flush()
 
@@ -186,23 +210,31 @@ class ResultStore:
         rows = []
         for group in self.shots.values():
             a = json.loads(group.attrs["batch"])
-            row = {"shot_id": a["shot_id"], "status": "done", "reason": "", "attempts":
-                   a["attempts"], "seconds": a["seconds"], "flags": a["flags"]}  # fmt: skip
+            row = {"shot_id": a["shot_id"], "beam": a.get("beam"), "status": "done",
+                   "reason": "", "attempts": a["attempts"], "seconds": a["seconds"],
+                   "flags": a["flags"]}  # fmt: skip
             row.update({k: v for k, v in a["summary"].items() if k not in BASE_COLUMNS})
             rows.append((a["index"], row))
         for group in self.failed.values():
             a = json.loads(group.attrs["batch"])
-            row = {"shot_id": a["shot_id"], "status": "failed", "reason": a["reason"],
-                   "attempts": a["attempts"], "seconds": "", "flags": ""}  # fmt: skip
+            row = {"shot_id": a["shot_id"], "beam": a.get("beam"), "status": "failed",
+                   "reason": a["reason"], "attempts": a["attempts"], "seconds": "",
+                   "flags": ""}  # fmt: skip
             rows.append((a["index"], row))
         rows.sort(key=lambda item: item[0])
+        if all(row["beam"] is None for _, row in rows):  # a format without beams
+            for _, row in rows:
+                del row["beam"]
         return [row for _, row in rows]
 
     def write_csv(self, path=None) -> Path:
-        """Write the summary CSV (one row per shot) and return its path."""
+        """Write the summary CSV (one row per shot; the beam second, where the format has
+        beams) and return its path."""
         path = csv_path_for(self.path) if path is None else Path(path)
         rows = self.rows()
         columns = list(BASE_COLUMNS)
+        if any("beam" in row for row in rows):
+            columns.insert(1, "beam")
         for row in rows:
             columns.extend(k for k in row if k not in columns)
         with open(path, "w", newline="") as handle:

@@ -1,15 +1,17 @@
 """``lidarinv batch``: invert every shot of a waveform file into one resumable HDF5 file."""
 
 import importlib
+import sys
 from pathlib import Path
 
 import h5py
 
-from lidarinv.io.formats import FORMATS, detect_format, iter_observations
+from lidarinv.io.formats import FORMATS, inspect_file, iter_observations
 
 from . import Interrupted, interrupted
-from .options import add_inversion_options, inversion_settings, positive_int
-from .outputs import check_folder_writable
+from .kernels import announce_compilation
+from .options import add_inversion_options, check_instrument, inversion_settings, positive_int
+from .outputs import check_folder_writable, check_new_files
 
 HELP = "invert many shots in parallel (local processes or a Dask cluster) into one HDF5 file"
 
@@ -77,17 +79,22 @@ def _invert_function(spec):
         raise ValueError(f"--invert {spec}: {error}") from error
 
 
-def _count(path, format, beams, shot_ids):
-    """Number of shots to expect (for the ETA), None if unknown."""
-    if shot_ids:
-        return len(shot_ids)
-    try:
-        with h5py.File(path, "r") as handle:
-            module = FORMATS[detect_format(handle) if format == "auto" else format]
-            chosen = module.beams(handle) if beams is None else beams
-            return sum(module.count_shots(handle, beam) for beam in chosen)
-    except (KeyError, ValueError, OSError):
-        return None
+def _check_outputs(args) -> None:
+    """Refuse, before any work, outputs that cannot be written or would be replaced: a
+    results file that is the input or not a batch results file (a batch file is resumed),
+    and a CSV beside it that is not that file's summary, unless ``--overwrite``."""
+    from lidarinv.batch.store import csv_path_for, is_results_file, is_summary_csv
+
+    results, summary = args.output, csv_path_for(args.output)
+    if results.exists() and results.resolve() == args.file.resolve():
+        raise ValueError(f"-o {results} is the input file; write the results to another file")
+    if results.exists() and not results.is_dir() and not is_results_file(results):
+        check_new_files([(results, "file")], args.overwrite)  # not ours: never resumed
+    resumed = results.exists() and not args.overwrite and is_results_file(results)
+    ours = resumed and is_summary_csv(summary)
+    where = f"file {summary}, where the summary CSV of {results.name} goes,"
+    check_new_files([(summary, where)], args.overwrite or ours or not summary.exists())
+    check_folder_writable(results, "results file")
 
 
 class _Selected:
@@ -133,13 +140,17 @@ def _stored_shots(path) -> int:
 
 def run(args) -> int:
     from lidarinv.batch import connect_dask, csv_path_for, invert_many
+    from lidarinv.batch.executors import WithFlag
 
-    if not args.file.exists():
-        raise ValueError(f"no such file: {args.file}")
+    described = inspect_file(args.file, args.format, args.beam)
+    override = check_instrument(args, described)
     settings = _settings(args)
     invert = _invert_function(args.invert)
-    check_folder_writable(args.output, "results file")
-    items = iter_observations(args.file, args.format, beams=args.beam)
+    _check_outputs(args)
+    if override:
+        print(f"lidarinv batch: warning: {override}", file=sys.stderr)
+        invert = WithFlag(invert, override)
+    items = iter_observations(args.file, described.format, beams=args.beam)
     selected = None
     if args.shot:
         items = selected = _Selected(items, args.shot)
@@ -152,6 +163,8 @@ def run(args) -> int:
     existed = True  # until known: an interruption then removes nothing
     try:
         existed = _start_afresh(args)
+        if args.invert is None:  # the default inversion: its kernels compile in each worker
+            announce_compilation("lidarinv batch")
         summary = invert_many(
             items,
             settings,
@@ -163,7 +176,7 @@ def run(args) -> int:
             progress=not args.no_progress,
             retries=args.retries,
             max_shots=args.max_shots,
-            total=_count(args.file, args.format, args.beam, args.shot),
+            total=len(args.shot) if args.shot else described.n_shots,
         )
     except BaseException as error:
         if not interrupted(error):
@@ -183,7 +196,8 @@ def run(args) -> int:
     print(f"# {summary}")
     print(f"# results: {summary.output}  summary: {summary.csv}")
     for shot_id, reason in list(summary.failed.items())[:10]:
-        print(f"# failed {shot_id}: {reason}")
+        beam = f" ({summary.beams[shot_id]})" if shot_id in summary.beams else ""
+        print(f"# failed {shot_id}{beam}: {reason}")
     if len(summary.failed) > 10:
         print(f"# ... and {len(summary.failed) - 10} more failed shots (see the CSV)")
     missing = [] if selected is None or summary.stopped_early else selected.missing

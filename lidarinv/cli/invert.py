@@ -1,13 +1,16 @@
 """``lidarinv invert``: posterior of the stand parameters for shots of a waveform file."""
 
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from lidarinv.io.formats import FORMATS, iter_observations
+from lidarinv.io.formats import FORMATS, inspect_file, iter_observations
 from lidarinv.observe.observation import ShotError
+from lidarinv.observe.quality import clipped_plateau
 
-from .options import add_inversion_options, inversion_settings
+from .kernels import announce_compilation
+from .options import add_inversion_options, check_instrument, inversion_settings
 from .outputs import check_hdf5_groups, check_plot_folder, save_group
 
 HELP = "sample the posterior of canopy height, volume, cover and LAI for waveform shots"
@@ -109,16 +112,34 @@ def headline(result) -> str:
     return "\n".join(lines)
 
 
-def _check_outputs(args) -> None:
+def figure_names(shot_id) -> list:
+    """The files ``--plots`` writes for a shot (:func:`lidarinv.inference.plots.save_plots`)."""
+    from lidarinv.inference.plots import PLOTS
+
+    return [f"shot_{shot_id}_{name}.png" for name in PLOTS]
+
+
+def _check_outputs(args, shot_ids) -> None:
     """Refuse, before any sampling, outputs that cannot be written or would replace a
-    result: the posterior file and group(s), and the figure folder."""
-    if args.example is not None:
-        names = [group_of(args.example)]
-    else:
-        names = [group_of(s) for s in args.shot or ()]
-    check_hdf5_groups(args.output, names, args.overwrite)
+    result: the posterior file and the shots' groups, and the shots' figures."""
+    check_hdf5_groups(args.output, [group_of(s) for s in shot_ids], args.overwrite)
     if args.plots is not None:
-        check_plot_folder(args.plots)
+        names = [name for shot_id in shot_ids for name in figure_names(shot_id)]
+        check_plot_folder(args.plots, names, args.overwrite)
+
+
+def _sample_notes(item) -> list:
+    """What the samples hold that the likelihood treats specially, said before sampling."""
+    notes = []
+    saturated = int(np.count_nonzero(item.saturated_mask))
+    if saturated:
+        notes.append(f"{saturated} saturated sample(s) enter the likelihood as censored")
+    elif clipped_plateau(item.samples):
+        notes.append(
+            "clipped return (a plateau at the maximum, no saturation level in the file): its "
+            "samples enter the likelihood as censored"
+        )
+    return notes
 
 
 def run(args) -> int:
@@ -127,31 +148,40 @@ def run(args) -> int:
 
     if (args.file is None) == (args.example is None):
         raise ValueError("give a waveform file or --example NAME (one of them)")
-    if args.file is not None and not args.file.exists():
-        raise ValueError(f"no such file: {args.file}")
     if args.example is not None:
         from lidarinv.examples import SYNTHETIC_SHOTS
 
         if args.example not in SYNTHETIC_SHOTS:
             raise ValueError(f"unknown example {args.example!r}; known: {list(SYNTHETIC_SHOTS)}")
+    override = None
+    if args.file is not None:
+        override = check_instrument(args, inspect_file(args.file, args.format, args.beam))
     # the built-in examples carry no transmitted waveform: no broadening to sample
     settings = inversion_settings(args, measured_pulse=args.example is None)
-    _check_outputs(args)
+    _check_outputs(args, [args.example] if args.example is not None else args.shot or [])
+    if override:
+        print(f"lidarinv invert: warning: {override}", file=sys.stderr)
     rng = np.random.default_rng(args.seed)
-    failures = 0
+    failures, announced = 0, False
     for item in _selected(args, rng):
         if isinstance(item, ShotError):
             print(f"shot {item.shot_id}: skipped: {item.reason}")
             failures += 1
             continue
         group = group_of(item.shot_id)
-        check_hdf5_groups(args.output, [group], args.overwrite)  # the first shot's id
+        _check_outputs(args, [item.shot_id])  # the first shot's id, known now
+        for note in _sample_notes(item):
+            print(f"lidarinv invert: shot {item.shot_id}: {note}", file=sys.stderr)
+        if not announced:
+            announced = announce_compilation("lidarinv invert")
         try:
             result = invert_shot(item, settings, rng=rng, progress=not args.quiet)
         except ValueError as error:
             print(f"shot {item.shot_id}: skipped: {error}")
             failures += 1
             continue
+        if override:
+            result.flags.append(override)
         save_group(args.output, group, result.write)
         print(headline(result))
         print()

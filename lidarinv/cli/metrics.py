@@ -2,15 +2,18 @@
 
 import csv
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from forward.instrument import INSTRUMENT_PRESETS
-from lidarinv.io.formats import FORMATS, iter_observations
+from lidarinv.io.formats import FORMATS, inspect_file, iter_observations
 from lidarinv.observe.analyse import analyse, json_value
 from lidarinv.observe.observation import ShotError
 from lidarinv.observe.processing import NOISE_SOURCES, processing_settings
+
+from .options import add_instrument_options, check_instrument
+from .outputs import check_new_files, check_plot_folder, written_whole
 
 HELP = "ground, RH0–RH100, cover, PAVD and quality flags for each shot of a waveform file"
 
@@ -25,11 +28,7 @@ def add_arguments(parser) -> None:
     )
     parser.add_argument("--beam", action="append", help="beam to read (GEDI; repeatable)")
     parser.add_argument("--shots", type=int, help="at most this many shots per beam")
-    parser.add_argument(
-        "--instrument",
-        choices=sorted(INSTRUMENT_PRESETS),
-        help="instrument preset; default: the one the file names",
-    )
+    add_instrument_options(parser)
     parser.add_argument("--json", type=Path, help="write every shot's record to this JSON file")
     parser.add_argument("--csv", type=Path, help="write every shot's record to this CSV file")
     parser.add_argument("--plot", type=Path, help="write one PNG per shot to this folder")
@@ -40,9 +39,16 @@ def add_arguments(parser) -> None:
     )
     parser.add_argument("--rho-ratio", type=float, help="assumed ρv/ρg for cover (default 1.5)")
     parser.add_argument("--quiet", action="store_true", help="no table on the terminal")
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace existing --json/--csv files and figures"
+    )
 
 
-def _row(result) -> str:
+def _beam_cell(item, has_beams) -> str:
+    return f" {item.metadata.get('beam', '-')!s:>8}" if has_beams else ""
+
+
+def _row(result, beam="") -> str:
     rh = result.rh if result.rh is not None else np.full(101, np.nan)
     values = (result.latitude, result.longitude, result.ground, result.ground_uncertainty,
               rh[50], rh[98], rh[100], result.cover, result.sensitivity)  # fmt: skip
@@ -54,13 +60,24 @@ def _row(result) -> str:
     status = result.status + (f" ({', '.join(result.flags)})" if result.flags else "")
     if result.reason and not result.ok:
         status += f": {result.reason}"
-    return f"{result.shot_id!s:>20} " + " ".join(cells) + f"  {status}"
+    return f"{result.shot_id!s:>20}{beam} " + " ".join(cells) + f"  {status}"
 
 
-def _header() -> str:
-    widths = (20, 9, 10, 9, 5, 6, 6, 6, 6, 5)
-    cells = [name.rjust(width) for name, width in zip(_HEADER, widths)]
-    return " ".join(cells) + "  " + _HEADER[-1]
+def _header(has_beams=False) -> str:
+    names, widths = list(_HEADER), [20, 9, 10, 9, 5, 6, 6, 6, 6, 5]
+    if has_beams:
+        names.insert(1, "beam")
+        widths.insert(1, 8)
+    cells = [name.rjust(width) for name, width in zip(names, widths)]
+    return " ".join(cells) + "  " + names[-1]
+
+
+def _with_beam(record, item, has_beams) -> dict:
+    """``record`` with the shot's beam as its second key (formats with beams)."""
+    if not has_beams:
+        return record
+    first, *rest = record.items()
+    return dict([first, ("beam", json_value(item.metadata.get("beam"))), *rest])
 
 
 def _error_record(item, reason) -> dict:
@@ -70,12 +87,14 @@ def _error_record(item, reason) -> dict:
 
 
 def _write_csv(path: Path, records) -> None:
-    """One row per shot; flags joined by ';', metadata columns prefixed ``meta_``."""
+    """One row per shot; flags joined by ';', metadata columns prefixed ``meta_`` (the
+    beam, a plain column near the front, is not repeated)."""
     rows = []
     for record in records:
         row = {k: v for k, v in record.items() if k not in ("metadata", "flags")}
         row["flags"] = ";".join(record.get("flags", []))
-        row.update({f"meta_{k}": v for k, v in record.get("metadata", {}).items()})
+        meta = record.get("metadata", {})
+        row.update({f"meta_{k}": v for k, v in meta.items() if k not in record})
         rows.append(row)
     columns = list(dict.fromkeys(key for row in rows for key in row))
     with open(path, "w", newline="") as handle:
@@ -84,43 +103,56 @@ def _write_csv(path: Path, records) -> None:
         writer.writerows(rows)
 
 
+def _check_outputs(args) -> None:
+    """Refuse, before any shot is read, outputs that cannot be written or would replace
+    a file: the JSON and CSV files, and earlier figures in the --plot folder."""
+    files = [(args.json, "JSON file"), (args.csv, "CSV file")]
+    check_new_files([(path, what) for path, what in files if path is not None], args.overwrite)
+    if args.plot:
+        check_plot_folder(args.plot, overwrite=args.overwrite, pattern="shot_*.png")
+
+
 def run(args) -> int:
-    if not args.file.exists():
-        raise ValueError(f"no such file: {args.file}")
-    for out in (args.json, args.csv):
-        if out is not None and not out.parent.exists():
-            raise ValueError(f"cannot write {out}: folder {out.parent} does not exist")
+    summary = inspect_file(args.file, args.format, args.beam)
+    override = check_instrument(args, summary)
+    _check_outputs(args)
     shots = None if args.shots is None else slice(0, args.shots)
     echo = print if not args.quiet else (lambda *a, **k: None)
-    echo(_header())
+    if override:
+        print(f"lidarinv metrics: warning: {override}", file=sys.stderr)
+    echo(_header(summary.has_beams))
     records, n_ok, n_quality = [], 0, 0
-    for item in iter_observations(args.file, args.format, beams=args.beam, shots=shots):
+    for item in iter_observations(args.file, summary.format, beams=args.beam, shots=shots):
+        beam = _beam_cell(item, summary.has_beams)
         if isinstance(item, ShotError):
-            echo(f"{item.shot_id!s:>20} skipped: {item.reason}")
-            records.append(_error_record(item, item.reason))
+            echo(f"{item.shot_id!s:>20}{beam} skipped: {item.reason}")
+            records.append(_with_beam(_error_record(item, item.reason), item, summary.has_beams))
             continue
         try:
             instrument = args.instrument or item.instrument
             settings = processing_settings(instrument, noise=args.noise, rho_ratio=args.rho_ratio)
             result = analyse(item, settings, instrument=args.instrument)
         except ValueError as error:
-            echo(f"{item.shot_id!s:>20} skipped: {error}")
-            records.append(_error_record(item, str(error)))
+            echo(f"{item.shot_id!s:>20}{beam} skipped: {error}")
+            records.append(_with_beam(_error_record(item, str(error)), item, summary.has_beams))
             continue
+        if override:
+            result.flags.append(override)
         n_ok += result.ok
         n_quality += result.quality
-        echo(_row(result))
-        records.append(result.to_dict())
+        echo(_row(result, beam))
+        records.append(_with_beam(result.to_dict(), item, summary.has_beams))
         if args.plot:
             from lidarinv.observe.figures import save_analysis_figure
 
-            args.plot.mkdir(parents=True, exist_ok=True)
             save_analysis_figure(item, result, args.plot / f"shot_{item.shot_id}.png")
     print(f"# {len(records)} shot(s): {n_ok} with metrics, {n_quality} quality")
     if args.json:
-        args.json.write_text(json.dumps(records, indent=1))
+        with written_whole(args.json) as partial:
+            partial.write_text(json.dumps(records, indent=1))
         print(f"# wrote {args.json}")
     if args.csv:
-        _write_csv(args.csv, records)
+        with written_whole(args.csv) as partial:
+            _write_csv(partial, records)
         print(f"# wrote {args.csv}")
     return 0 if n_ok or not records else 1

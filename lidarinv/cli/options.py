@@ -31,15 +31,43 @@ def walker_count(text: str) -> int:
     return value
 
 
-def add_inversion_options(parser) -> None:
-    """``--priors``, ``--instrument``, ``--max-steps``, ``--walkers``, ``--cohorts``,
-    ``--footprint-cover`` and ``--overwrite``."""
-    parser.add_argument("--priors", type=Path, help="TOML file of prior overrides")
+def add_instrument_options(parser, default_text="the one the file names") -> None:
+    """``--instrument`` and ``--override-instrument``."""
     parser.add_argument(
         "--instrument",
         choices=sorted(INSTRUMENT_PRESETS),
-        help="instrument preset for the pulse and footprint (default: the one the file names)",
+        help=f"instrument preset for the pulse and footprint (default: {default_text}); "
+        "one that contradicts the file is refused",
     )
+    parser.add_argument(
+        "--override-instrument",
+        action="store_true",
+        help="use --instrument even where the file says another instrument recorded it "
+        "(a warning is recorded with every result)",
+    )
+
+
+def check_instrument(args, summary) -> str | None:
+    """Refuse an ``--instrument`` that contradicts the instrument the file's layout names
+    (``summary``: :class:`lidarinv.io.formats.FileSummary`), unless
+    ``--override-instrument``; then return the warning to record with each result."""
+    chosen, recorded = args.instrument, summary.instrument
+    if chosen is None or recorded is None or chosen == recorded:
+        return None
+    if not getattr(args, "override_instrument", False):
+        raise ValueError(
+            f"--instrument {chosen} contradicts {summary.path}, a {summary.format} file of "
+            f"{recorded} shots; leave --instrument out to use {recorded}, or pass "
+            f"--override-instrument to process them as {chosen}"
+        )
+    return f"instrument {chosen} overrides the file's {recorded} (--override-instrument)"
+
+
+def add_inversion_options(parser) -> None:
+    """``--priors``, ``--instrument`` (and ``--override-instrument``), ``--max-steps``,
+    ``--walkers``, ``--cohorts``, ``--footprint-cover`` and ``--overwrite``."""
+    parser.add_argument("--priors", type=Path, help="TOML file of prior overrides")
+    add_instrument_options(parser)
     parser.add_argument(
         "--max-steps", type=positive_int, metavar="N", help="cap on sampler steps (default 20000)"
     )

@@ -1,8 +1,12 @@
 """Output files of the command line: checked before any computation, never replaced
 without ``--overwrite``, and written whole or not at all.
 
-Every check raises a ``ValueError`` whose message names the file, so that a missing or
-read-only folder is reported before a minute of sampling rather than after it.
+Every file a command writes (posterior files, metrics CSV and JSON, figures, batch results
+and the summary CSV beside them) goes through :func:`check_new_files` (or, for groups of an
+HDF5 file, :func:`check_hdf5_groups`) before any work. Every check raises a
+``ValueError`` whose message names the file(s), so that a missing or read-only folder, or
+a file that would be replaced, is reported before a minute of sampling rather than after
+it.
 """
 
 import contextlib
@@ -33,23 +37,44 @@ def check_folder_writable(path, what="output") -> Path:
     return path
 
 
+def check_new_files(outputs, overwrite: bool) -> list:
+    """Each ``(path, what)`` of ``outputs`` can be written and none is an existing file
+    (unless ``overwrite``); one error names every file that would be replaced.
+
+    Returns the paths.
+    """
+    outputs = [(Path(path), what) for path, what in outputs]
+    for path, what in outputs:
+        if path.is_dir():
+            raise ValueError(f"cannot write {what} {path}: it is a folder")
+    existing = [what if str(path) in what else f"{what} {path}" for path, what in outputs
+                if path.exists()]  # fmt: skip
+    if existing and not overwrite:
+        many = len(existing) > 1
+        shown = ", ".join(existing[:5]) + (f" and {len(existing) - 5} more" if many else "")
+        raise ValueError(
+            f"{shown} {'exist' if many else 'exists'}; pass --overwrite to replace "
+            f"{'them' if many else 'it'}, or choose {'other files' if many else 'another file'}"
+        )
+    return [check_folder_writable(path, what) for path, what in outputs]
+
+
 def check_new_file(path, overwrite: bool, what="output") -> Path:
     """``path`` can be written and is not an existing file (unless ``overwrite``)."""
-    path = Path(path)
-    if path.is_dir():
-        raise ValueError(f"cannot write {what} {path}: it is a folder")
-    if path.exists() and not overwrite:
-        raise ValueError(
-            f"{what} {path} exists; pass --overwrite to replace it, or choose another file"
-        )
-    return check_folder_writable(path, what)
+    return check_new_files([(path, what)], overwrite)[0]
 
 
-def check_plot_folder(folder) -> Path:
-    """A folder for figures: created if missing (its parent must exist), writable."""
+def check_plot_folder(folder, names=(), overwrite: bool = False, pattern=None) -> Path:
+    """A folder for figures: created if missing (its parent must exist), writable, and
+    holding none of the figures ``names`` (nor any file matching the glob ``pattern``:
+    figures of an earlier run this one may replace), unless ``overwrite``."""
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"cannot write figures to {folder}: it is a file")
+    figures = [folder / name for name in names]
+    if folder.is_dir() and pattern is not None:
+        figures += sorted(folder.glob(pattern))
+    check_new_files([(path, "figure") for path in dict.fromkeys(figures)], overwrite)
     if not folder.exists():
         check_folder_writable(folder, "figure folder")
         folder.mkdir()

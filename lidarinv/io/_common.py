@@ -7,6 +7,12 @@ from lidarinv.observe.observation import Observation, ShotError
 #: Shots read per h5py slice when streaming.
 CHUNK = 512
 
+#: Largest magnitude (digitiser units) a recorded sample can have: waveform digitisers
+#: record at most 16 bits (GEDI and LVIS fewer), so a count beyond 2²⁴, 256 times a 16-bit
+#: full scale, is no measurement (a fill value, a corrupt record) and its shot is refused
+#: before any analysis or sampling.
+ABSURD_SAMPLE = float(2**24)
+
 
 def select_shots(n_shots: int, shots=None) -> np.ndarray:
     """Sorted shot indices from ``None`` (all), a slice, or a sequence of indices."""
@@ -48,7 +54,8 @@ def read_rows(dataset, lo: int, hi: int, part: np.ndarray):
 
 
 def build(shot_id, metadata, **fields):
-    """An :class:`Observation`, or a :class:`ShotError` giving why it could not be built.
+    """An :class:`Observation`, or a :class:`ShotError` giving why it could not be built
+    (NaN or absurd samples, beyond :data:`ABSURD_SAMPLE`, among others).
 
     A descending axis (mission files are in time order, top first) is reversed together
     with the samples and the censored mask.
@@ -60,7 +67,17 @@ def build(shot_id, metadata, **fields):
             fields["samples"] = np.asarray(fields["samples"])[::-1]
             if fields.get("censored") is not None:
                 fields["censored"] = np.asarray(fields["censored"])[::-1]
-        return Observation(shot_id=shot_id, metadata=metadata, **fields)
+        observation = Observation(shot_id=shot_id, metadata=metadata, **fields)
+        absurd = np.abs(observation.samples) >= ABSURD_SAMPLE
+        if absurd.any():
+            largest = observation.samples[absurd][np.argmax(np.abs(observation.samples[absurd]))]
+            return ShotError(
+                shot_id,
+                f"{int(absurd.sum())} absurd sample(s) (up to {largest:.3g}; a digitiser "
+                f"records less than {ABSURD_SAMPLE:.3g}): a fill value or a corrupt record",
+                metadata,
+            )
+        return observation
     except ValueError as error:
         return ShotError(shot_id, str(error), metadata)
 

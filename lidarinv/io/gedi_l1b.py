@@ -35,6 +35,11 @@ def detect(handle) -> bool:
     return any(_BEAM.fullmatch(k) and "rxwaveform" in handle[k] for k in handle)
 
 
+def instrument(handle) -> str:
+    """GEDI L1B files hold GEDI shots."""
+    return INSTRUMENT
+
+
 def beams(handle) -> list:
     """Beam group names, sorted."""
     return sorted(k for k in handle if _BEAM.fullmatch(k))

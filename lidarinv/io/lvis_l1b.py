@@ -25,6 +25,11 @@ def detect(handle) -> bool:
     return "RXWAVE" in handle and "Z0" in handle
 
 
+def instrument(handle) -> str:
+    """LVIS L1B files hold LVIS shots."""
+    return INSTRUMENT
+
+
 def beams(handle) -> list:
     """LVIS files have a single beam, named ``None``."""
     return [None]

@@ -153,6 +153,13 @@ def beams(handle) -> list:
     return [None]
 
 
+def instrument(handle) -> str | None:
+    """The preset named by ``/instrument`` (None when the file names none)."""
+    if "instrument" in handle and "instrument" in handle["instrument"].attrs:
+        return str(scalar(handle["instrument"].attrs["instrument"]))
+    return None
+
+
 def count_shots(handle, beam=None) -> int:
     return int(handle["waveforms/sample_count"].shape[0])
 
@@ -171,9 +178,7 @@ def iter_shots(handle, beam=None, shots=None):
         raise ValueError("this file was written by a newer lidarinv layout version")
     group = handle["waveforms"]
     kind = str(scalar(group.attrs["axis_kind"]))
-    instrument = None
-    if "instrument" in handle and "instrument" in handle["instrument"].attrs:
-        instrument = str(scalar(handle["instrument"].attrs["instrument"]))
+    recorded_by = instrument(handle)
     n = group["sample_count"].shape[0]
     for part, lo, hi in chunks(select_shots(n, shots)):
         get = {
@@ -200,7 +205,7 @@ def iter_shots(handle, beam=None, shots=None):
                 pulse=pulse,
                 pulse_ns=float(get["pulse_ns"][i]) if "pulse_ns" in get else np.nan,
                 truth=truths,
-                instrument=instrument,
+                instrument=recorded_by,
                 **{k: float(get[k][i]) for k in _SCALARS},
             )
 
