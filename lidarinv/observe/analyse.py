@@ -10,7 +10,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .ground import find_ground
+from .ground import find_ground, lower_flank_width
+from .ground_candidates import choose_ground, ground_candidates
 from .instrument import ground_return_cdf, pulse_sigma_bins, shot_instrument
 from .metrics import ALL_PERCENTILES, gap_profile, rh_metrics
 from .noise import (
@@ -22,7 +23,7 @@ from .noise import (
     with_smoothed_noise,
 )
 from .observation import Observation
-from .processing import ProcessingSettings, processing_settings
+from .processing import GROUND_RULES, ProcessingSettings, processing_settings
 from .quality import clipped_plateau, sensitivity
 from .signal import edge_bins, signal_extent, smooth
 
@@ -67,6 +68,14 @@ class ShotAnalysis:
         waveform, as a Gaussian σ.
     n_modes : int
         Significant modes in the signal (1: a lone ground peak).
+    ground_kind : str
+        ``"mode"`` or ``"shoulder"`` (:mod:`lidarinv.observe.ground_candidates`).
+    ground_evidence : float
+        The chosen ground's evidence (σ of the windowed energy sum or chord excess, the
+        weaker); ``ground_level`` is the significance level it was held to.
+    ground_alternative, ground_alternative_evidence : float (m), float
+        The other plausible ground and its evidence (NaN where there is none); with
+        the flag "ground ambiguous" when it is a plausible return below the chosen one.
     canopy_height : float (m)
         Signal start above the ground (RH100).
     rh : array (m) or None
@@ -101,6 +110,11 @@ class ShotAnalysis:
     ground_uncertainty: float = np.nan
     ground_width: float = np.nan
     n_modes: int = 0
+    ground_kind: str = ""
+    ground_evidence: float = np.nan
+    ground_level: float = np.nan
+    ground_alternative: float = np.nan
+    ground_alternative_evidence: float = np.nan
     canopy_height: float = np.nan
     rh: np.ndarray | None = None
     cover: float = np.nan
@@ -141,6 +155,11 @@ class ShotAnalysis:
             "longitude": self.longitude,
             "ground": self.ground,
             "ground_uncertainty": self.ground_uncertainty,
+            "ground_kind": self.ground_kind,
+            "ground_evidence": self.ground_evidence,
+            "ground_level": self.ground_level,
+            "ground_alternative": self.ground_alternative,
+            "ground_alternative_evidence": self.ground_alternative_evidence,
             "signal_start": self.signal_start,
             "signal_end": self.signal_end,
             "canopy_height": self.canopy_height,
@@ -310,7 +329,10 @@ def analyse(
     result.ground, result.ground_uncertainty = peak.position, peak.uncertainty
     result.ground_width = peak.width
     result.n_modes = peak.n_modes
-    result.canopy_height = extent.start - peak.position
+    rule = GROUND_RULES[settings.ground_rule]
+    lowest = max(edge, 1) if rule["below_back_floor"] else extent.end_index
+    _weak_ground(result, obs, smoothed, free, int(np.rint(peak.index)), lowest, pulse_bins, rule)
+    result.canopy_height = extent.start - result.ground
     _geolocate(result, obs)
     if metrics:
         _metrics(result, obs, smoothed, settings, instrument, np.hypot(pulse_bins, smoothing))
@@ -318,6 +340,42 @@ def analyse(
             result.flags.append("low sensitivity")
     result.quality = not any(flag in QUALITY_FLAGS for flag in result.flags)
     return result
+
+
+def _weak_ground(result, obs, smoothed, free, lowest_mode, lowest_bin, pulse_bins, rule) -> None:
+    """Replace the lowest mode by a weaker, lower return where the noise says it is one
+    (:mod:`lidarinv.observe.ground_candidates`), and report the alternative."""
+    return_bins = float(np.hypot(pulse_bins, result.smoothing_bins))
+    candidates, level, plausible_level = ground_candidates(
+        obs.samples,
+        smoothed,
+        obs.axis,
+        result.noise,
+        lowest_mode=lowest_mode,
+        lowest_bin=lowest_bin,
+        return_sigma_bins=return_bins,
+        signal_free=free if result.noise.source == "samples" else None,
+    )
+    choice = choose_ground(candidates, level, plausible_level, kinds=rule["kinds"])
+    chosen = choice.chosen
+    result.ground_kind, result.ground_level = chosen.kind, level
+    result.ground_evidence = chosen.evidence()
+    if choice.alternative is not None:
+        result.ground_alternative = choice.alternative.position
+        result.ground_alternative_evidence = choice.alternative.evidence()
+    if choice.ambiguous:
+        result.flags.append("ground ambiguous")
+    if chosen is candidates[-1]:
+        return
+    # a return of σ_r bins found at S σ: its centre is known to about σ_r / S
+    result.ground = chosen.position
+    # a ground below the back floor: the signal ends below its return, two widths down
+    result.signal_end = min(result.signal_end, chosen.position - 2.0 * return_bins * obs.bin_size)
+    result.signal_end = max(result.signal_end, float(obs.axis[0]))
+    result.ground_uncertainty = return_bins * obs.bin_size / max(chosen.evidence(), 1.0)
+    centred = np.asarray(smoothed, float) - result.noise.mean
+    result.ground_width = lower_flank_width(centred, int(np.rint(chosen.index))) * obs.bin_size
+    result.n_modes += 1
 
 
 def _faint_signal(smoothed, noise, n_sigmas, guard) -> np.ndarray:
