@@ -24,11 +24,18 @@ from .noise import (
 )
 from .observation import Observation
 from .processing import GROUND_RULES, ProcessingSettings, processing_settings
-from .quality import clipped_plateau, sensitivity
+from .quality import INCONSISTENT, clipped_plateau, contradictions, sensitivity
 from .signal import edge_bins, signal_extent, smooth
 
 #: Statuses a shot analysis can end with.
-STATUSES = ("ok", "no signal", "no ground peak", "ground outside window", "noise unknown")
+STATUSES = (
+    "ok",
+    "no signal",
+    "no ground peak",
+    "ground outside window",
+    "noise unknown",
+    INCONSISTENT,
+)
 #: Flags that keep a shot with status "ok" out of the quality set (as L2A quality_flag).
 QUALITY_FLAGS = ("saturated", "clipped", "stale return", "truncated top", "low sensitivity")
 #: Passes of noise estimation and signal finding (each refines the signal-free bins).
@@ -338,6 +345,10 @@ def analyse(
         _metrics(result, obs, smoothed, settings, instrument, np.hypot(pulse_bins, smoothing))
         if result.sensitivity < settings.min_sensitivity:
             result.flags.append("low sensitivity")
+        failed = _contradictions(result, obs, smoothed, instrument, np.hypot(pulse_bins, smoothing))
+        if failed:
+            result.flags.extend(failed)
+            return _stop(result, INCONSISTENT, "; ".join(failed))
     result.quality = not any(flag in QUALITY_FLAGS for flag in result.flags)
     return result
 
@@ -376,6 +387,22 @@ def _weak_ground(result, obs, smoothed, free, lowest_mode, lowest_bin, pulse_bin
     centred = np.asarray(smoothed, float) - result.noise.mean
     result.ground_width = lower_flank_width(centred, int(np.rint(chosen.index))) * obs.bin_size
     result.n_modes += 1
+
+
+def _contradictions(result, obs, smoothed, instrument, return_width_bins) -> list:
+    """Checks of the metrics against each other (:func:`quality.contradictions`) on the
+    smoothed energy above the noise inside the signal extent."""
+    axis = obs.axis
+    inside = (axis >= result.signal_end) & (axis <= result.signal_start)
+    energy = np.clip(np.asarray(smoothed, float) - result.noise.mean, 0.0, None) * inside
+    return contradictions(
+        energy_below_ground=float(energy[axis < result.ground].sum()),
+        total_energy=float(energy.sum()),
+        rh=result.rh,
+        cover=result.cover,
+        return_fwhm_m=2.0 * np.sqrt(2.0 * np.log(2.0)) * return_width_bins * obs.bin_size,
+        ground_cdf=ground_return_cdf(instrument.pulse, result.smoothing_bins * obs.bin_size),
+    )
 
 
 def _faint_signal(smoothed, noise, n_sigmas, guard) -> np.ndarray:
