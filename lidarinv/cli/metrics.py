@@ -84,6 +84,22 @@ def _write_csv(path: Path, records) -> None:
         writer.writerows(rows)
 
 
+def _terrain(path, analysed, records, echo) -> int:
+    """Flag grounds that leave their track neighbours (:mod:`lidarinv.observe.terrain`);
+    the records are rewritten with the check; returns the number of quality shots."""
+    from lidarinv.observe.terrain import TERRAIN_FLAG, file_dem, flag_terrain
+
+    results = [result for _, result in analysed]
+    if results:
+        flag_terrain(results, file_dem(path, results))
+    for index, result in analysed:
+        records[index] = result.to_dict()
+    outliers = [str(r.shot_id) for r in results if TERRAIN_FLAG in r.flags]
+    if outliers:
+        echo(f"# {TERRAIN_FLAG}: {len(outliers)} shot(s): {', '.join(outliers)}")
+    return sum(r.quality for r in results)
+
+
 def run(args) -> int:
     if not args.file.exists():
         raise ValueError(f"no such file: {args.file}")
@@ -93,7 +109,7 @@ def run(args) -> int:
     shots = None if args.shots is None else slice(0, args.shots)
     echo = print if not args.quiet else (lambda *a, **k: None)
     echo(_header())
-    records, n_ok, n_quality = [], 0, 0
+    records, n_ok, analysed = [], 0, []
     for item in iter_observations(args.file, args.format, beams=args.beam, shots=shots):
         if isinstance(item, ShotError):
             echo(f"{item.shot_id!s:>20} skipped: {item.reason}")
@@ -108,14 +124,15 @@ def run(args) -> int:
             records.append(_error_record(item, str(error)))
             continue
         n_ok += result.ok
-        n_quality += result.quality
         echo(_row(result))
+        analysed.append((len(records), result))
         records.append(result.to_dict())
         if args.plot:
             from lidarinv.observe.figures import save_analysis_figure
 
             args.plot.mkdir(parents=True, exist_ok=True)
             save_analysis_figure(item, result, args.plot / f"shot_{item.shot_id}.png")
+    n_quality = _terrain(args.file, analysed, records, echo)
     print(f"# {len(records)} shot(s): {n_ok} with metrics, {n_quality} quality")
     if args.json:
         args.json.write_text(json.dumps(records, indent=1))

@@ -37,7 +37,14 @@ STATUSES = (
     INCONSISTENT,
 )
 #: Flags that keep a shot with status "ok" out of the quality set (as L2A quality_flag).
-QUALITY_FLAGS = ("saturated", "clipped", "stale return", "truncated top", "low sensitivity")
+QUALITY_FLAGS = (
+    "saturated",
+    "clipped",
+    "stale return",
+    "truncated top",
+    "low sensitivity",
+    "terrain outlier",
+)
 #: Passes of noise estimation and signal finding (each refines the signal-free bins).
 NOISE_PASSES = 4
 
@@ -97,6 +104,10 @@ class ShotAnalysis:
         Largest canopy cover under which this shot would still detect the ground.
     latitude, longitude : float (degrees)
         Position of the ground return where the file geolocates the window.
+    terrain_expected, terrain_residual, terrain_allowance : float (m)
+        The ground its track neighbours predict, the departure from it and the largest
+        departure the terrain allows (:mod:`lidarinv.observe.terrain`; NaN unless a
+        file's shots were checked together).
     metadata : dict
         The reader's per-shot metadata.
     """
@@ -131,6 +142,9 @@ class ShotAnalysis:
     sensitivity: float = np.nan
     latitude: float = np.nan
     longitude: float = np.nan
+    terrain_expected: float = np.nan
+    terrain_residual: float = np.nan
+    terrain_allowance: float = np.nan
     metadata: dict = field(default_factory=dict)
 
     @property
@@ -170,6 +184,9 @@ class ShotAnalysis:
             "signal_start": self.signal_start,
             "signal_end": self.signal_end,
             "canopy_height": self.canopy_height,
+            "terrain_expected": self.terrain_expected,
+            "terrain_residual": self.terrain_residual,
+            "terrain_allowance": self.terrain_allowance,
             "n_modes": self.n_modes,
             "cover": self.cover,
             "pai": self.pai,
