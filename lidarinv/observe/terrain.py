@@ -66,8 +66,11 @@ class TerrainCheck:
 def local_metres(latitude, longitude):
     """East and north offsets (m) from the shots' mean position (equirectangular)."""
     lat, lon = np.radians(latitude), np.radians(longitude)
-    lat0 = np.nanmean(lat)
-    east = EARTH_RADIUS_M * np.cos(lat0) * (lon - np.nanmean(lon))
+    known = np.isfinite(lat) & np.isfinite(lon)
+    if not known.any():  # a file without positions: nothing to compare
+        return np.full(lat.shape, np.nan), np.full(lat.shape, np.nan)
+    lat0 = np.mean(lat[known])
+    east = EARTH_RADIUS_M * np.cos(lat0) * (lon - np.mean(lon[known]))
     north = EARTH_RADIUS_M * (lat - lat0)
     return east, north
 
