@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import norm
 
-from .noise import _gaussian_weights, clipped_mean_sigma, filtered_sigma
+from .noise import clipped_mean_sigma, filtered_sigma, gaussian_weights
 
 #: Probability that a shot's search finds a ground candidate in noise alone (one in a
 #: hundred shots): the false-alarm rate of GEDI L2A's and LVIS L2's thresholds is of this
@@ -116,7 +116,7 @@ def chord_weights(first: int, last: int, smoothing_bins: float, n_bins: int) -> 
         return weights
     weights[inner] = 1.0
     t = (inner - first) / (last - first)
-    kernel, _ = _gaussian_weights(max(float(smoothing_bins), 1e-6))
+    kernel, _ = gaussian_weights(max(float(smoothing_bins), 1e-6))
     radius = kernel.size // 2
     for end, share in ((first, np.sum(1.0 - t)), (last, np.sum(t))):
         lo, hi = end - radius, end + radius + 1
@@ -144,7 +144,8 @@ def concave_stretches(smoothed, lo: int, hi: int):
     return out, curvature
 
 
-def _vertex(values, index):
+def _vertex(values, index: int) -> float:
+    """Fractional index of the parabola vertex through ``values[index-1:index+2]``."""
     if 0 < index < len(values) - 1:
         a, b, c = values[index - 1 : index + 2]
         curvature = a - 2.0 * b + c
@@ -154,9 +155,16 @@ def _vertex(values, index):
 
 
 def ground_candidates(
-    samples, smoothed, axis, noise, *, lowest_mode: int, lowest_bin: int, return_sigma_bins,
+    samples,
+    smoothed,
+    axis,
+    noise,
+    *,
+    lowest_mode: int,
+    lowest_bin: int,
+    return_sigma_bins: float,
     signal_free=None,
-):  # fmt: skip
+):
     """The lowest mode and the concave stretches below it, with their evidence.
 
     Parameters
@@ -185,6 +193,7 @@ def ground_candidates(
         ``PLAUSIBLE_FALSE_ALARM``.
     """
     samples = np.asarray(samples, float)
+    smoothed = np.asarray(smoothed, float)
     axis = np.asarray(axis, float)
     step = float(axis[1] - axis[0])
     half = max(int(np.rint(np.sqrt(2.0 * np.log(2.0)) * return_sigma_bins)), 1)
@@ -192,7 +201,7 @@ def ground_candidates(
     if signal_free is not None:
         measured = measured_window_sum_sigma(samples, signal_free, noise.mean, 2 * half + 1)
         sum_sigma = float(np.nanmax([sum_sigma, measured]))
-    stretches, _ = concave_stretches(smoothed, lowest_bin, lowest_mode)
+    stretches, curvature = concave_stretches(smoothed, lowest_bin, lowest_mode)
     # the lowest mode's own concave core is no separate candidate
     stretches = [s for s in stretches if s[1] < lowest_mode - half]
     n_windows = max((lowest_mode - lowest_bin) / (2 * half + 1), 1.0)
@@ -204,22 +213,16 @@ def ground_candidates(
         weights = chord_weights(first, last, noise.smoothing_bins, samples.size)
         spread = filtered_sigma(noise.sigma, noise.autocorrelation, weights)
         excess = chord_excess(samples, weights) / spread if spread > 0 else 0.0
-        kind = "mode" if _is_maximum(smoothed, centre, first, last) else "shoulder"
-        index = _vertex(-np.gradient(np.gradient(smoothed)), centre)
-        if kind == "mode":
-            index = _vertex(
-                np.asarray(smoothed, float), int(np.argmax(smoothed[first : last + 1])) + first
-            )
+        top = first + int(np.argmax(smoothed[first : last + 1]))
+        if first < top < last:  # a local maximum inside its concave stretch
+            kind, index = "mode", _vertex(smoothed, top)
+        else:  # the most concave bin: a component's centre on another's flank
+            kind, index = "shoulder", _vertex(-curvature, centre)
         out.append(GroundCandidate(float(axis[0] + index * step), index, kind, energy, excess))
     energy = window_energy(samples, noise.mean, lowest_mode, half) / sum_sigma
-    top = _vertex(np.asarray(smoothed, float), lowest_mode)
-    out.append(GroundCandidate(float(axis[0] + top * step), top, "mode", energy, np.inf))
+    index = _vertex(smoothed, lowest_mode)
+    out.append(GroundCandidate(float(axis[0] + index * step), index, "mode", energy, np.inf))
     return out, level, plausible_level
-
-
-def _is_maximum(smoothed, centre, first, last) -> bool:
-    k = first + int(np.argmax(smoothed[first : last + 1]))
-    return first < k < last
 
 
 @dataclass(frozen=True)
