@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .ground import find_ground, lower_flank_width
-from .ground_candidates import choose_ground, ground_candidates
+from .ground_candidates import candidate_uncertainty, choose_ground, ground_candidates
 from .instrument import ground_return_cdf, pulse_sigma_bins, shot_instrument
 from .metrics import ALL_PERCENTILES, gap_profile, rh_metrics
 from .noise import (
@@ -395,12 +395,11 @@ def _weak_ground(result, obs, smoothed, free, lowest_mode, lowest_bin, pulse_bin
         result.flags.append("ground ambiguous")
     if chosen is candidates[-1]:
         return
-    # a return of σ_r bins found at S σ: its centre is known to about σ_r / S
     result.ground = chosen.position
+    result.ground_uncertainty = candidate_uncertainty(chosen, return_bins * obs.bin_size)
     # a ground below the back floor: the signal ends below its return, two widths down
     result.signal_end = min(result.signal_end, chosen.position - 2.0 * return_bins * obs.bin_size)
     result.signal_end = max(result.signal_end, float(obs.axis[0]))
-    result.ground_uncertainty = return_bins * obs.bin_size / max(chosen.evidence(), 1.0)
     centred = np.asarray(smoothed, float) - result.noise.mean
     result.ground_width = lower_flank_width(centred, int(np.rint(chosen.index))) * obs.bin_size
     result.n_modes += 1

@@ -225,6 +225,15 @@ def ground_candidates(
     return out, level, plausible_level
 
 
+def candidate_uncertainty(candidate: GroundCandidate, return_sigma_m: float) -> float:
+    """1-σ uncertainty (m) of a candidate's centre: a mode of a return of σ_r found at S σ
+    is centred to about σ_r / S; a shoulder, a component overlapping a stronger one, no
+    better than half its σ_r (the most concave bin leans away from the flank above it)."""
+    if candidate.kind == "shoulder":
+        return 0.5 * return_sigma_m
+    return return_sigma_m / max(candidate.evidence(), 1.0)
+
+
 @dataclass(frozen=True)
 class GroundChoice:
     """The ground chosen among the candidates, and the alternative where there is one.
