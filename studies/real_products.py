@@ -5,14 +5,22 @@ LVIS L1B files and compares ground, RH50, RH98, RH100 and cover with GEDI L2A/L2
 LVIS L2: median difference, median and 90th percentile of |difference|, fraction within
 1 m. The GEDI statistics use the L2A quality shots (``quality_flag == 1``). The cover
 comparison is repeated at ρv/ρg = 1 and 2 to show how much of it the assumed ratio
-carries.
+carries. Each file's shots are checked against their track neighbours
+(:mod:`lidarinv.observe.terrain`), as ``lidarinv metrics`` does.
+
+The LVIS shots are also reported per flight line (grouped by the ``LFID`` the file
+gives each shot): the ground of every shot with one, against L2 ZG, counting the shots
+more than 1 m and 3 m off and those more than 3 m off that carry no flag (status other
+than ok, "ground ambiguous" or "terrain outlier"). The flight line with the tallest
+canopy (largest median L2 RH98) gets a figure of its worst shots: the waveform, the
+chosen ground and its alternative, and the L2 ZG.
 
     python studies/real_products.py [--data ../shared/data/real] [--tag _NAME]
 
 ``--data examples`` runs on the files shipped in ``lidarinv/data``. Writes
 ``studies/output/real_products{tag}/`` with ``summary.json``, ``scatter.png`` (metrics
 against the products) and ``waveforms.png`` (example shots with floors, signal extent and
-ground marked).
+ground marked) and ``tall_line_worst.png``.
 """
 
 import argparse
@@ -30,10 +38,13 @@ from lidarinv.io import (
     read_lvis_l2,
 )
 from lidarinv.observe import Observation, analyse, processing_settings
+from lidarinv.observe.terrain import TERRAIN_FLAG, file_dem, flag_terrain
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_DATA = HERE.parent.parent / "shared" / "data" / "real"
 QUANTITIES = ("ground", "rh50", "rh98", "rh100", "cover")
+#: Flags that tell a user the ground may be wrong (besides a status other than ok).
+GROUND_WARNINGS = ("ground ambiguous", TERRAIN_FLAG)
 
 
 def _files(data: str):
@@ -87,6 +98,9 @@ def analyse_file(path):
             result, error = None, f"exception: {type(exc).__name__}: {exc}"
         seconds.append(time.perf_counter() - start)
         rows.append((item, result, error, item.shot_id))
+    results = [result for _, result, _, _ in rows if result is not None]
+    if results:
+        flag_terrain(results, file_dem(path, results))
     return rows, seconds
 
 
@@ -140,6 +154,14 @@ def gedi_study(files):
             q: differences((r["ours"][q], r["product"][q]) for r in quality) for q in QUANTITIES
         },
         "cover_ratio": _cover_ratio(quality),
+        "ground_all_shots": ground_check(
+            rows,
+            lambda s: (
+                float(l2a[s]["elev_lowestmode"])
+                if s in l2a and l2a[s]["quality_flag"] == 1
+                else np.nan
+            ),
+        ),
     }
     return summary, rows, records
 
@@ -168,6 +190,70 @@ def _cover_ratio(records) -> dict:
     }
 
 
+def flagged(result) -> bool:
+    """The shot tells its user that its ground may be wrong."""
+    return not result.ok or any(flag in result.flags for flag in GROUND_WARNINGS)
+
+
+def ground_check(rows, product_ground) -> dict:
+    """Every shot with a ground (whatever its status) against the product's ground."""
+    d, warned = [], []
+    for _, result, _, shot in rows:
+        truth = product_ground(shot)
+        if result is None or not np.isfinite(result.ground) or not np.isfinite(truth):
+            continue
+        d.append(result.ground - truth)
+        warned.append(flagged(result))
+    d, warned = np.abs(np.array(d)), np.array(warned, bool)
+    if d.size == 0:
+        return {"n": 0}
+    return {
+        "n": int(d.size),
+        "within_1m": float(np.mean(d <= 1.0)),
+        "over_1m": int(np.sum(d > 1.0)),
+        "over_3m": int(np.sum(d > 3.0)),
+        "over_3m_unflagged": int(np.sum((d > 3.0) & ~warned)),
+        "flagged": int(warned.sum()),
+        "median_abs": float(np.median(d)),
+    }
+
+
+def lvis_groups(rows, l2) -> dict:
+    """Per flight line (the file's LFID): shots, statuses, flags, ground check and the
+    ok shots' differences, with the median L2 RH98 that tells the tall line apart."""
+    groups = {}
+    for row in rows:
+        obs = row[0]
+        lfid = obs.metadata.get("lfid", "?") if obs is not None else "?"
+        groups.setdefault(str(lfid), []).append(row)
+    out = {}
+    for lfid, members in groups.items():
+        zg = {shot: l2[shot]["zg"] for *_, shot in members if shot in l2}
+        rh98 = [l2[shot]["rh"][98] for shot in zg if np.isfinite(l2[shot]["rh"][98])]
+        out[lfid] = {
+            "shots": len(members),
+            "product_rh98_median": float(np.median(rh98)) if rh98 else float("nan"),
+            **_status_counts(members),
+            "ground_all_shots": ground_check(members, lambda s, zg=zg: zg.get(s, np.nan)),
+            "differences": {
+                q: differences(
+                    (_ours(r)[q], _lvis_product(l2[s])[q])
+                    for _, r, _, s in members
+                    if r is not None and r.ok and s in l2
+                )
+                for q in QUANTITIES[:-1]
+            },
+        }
+    return out
+
+
+def _lvis_product(product) -> dict:
+    return {
+        "ground": float(product["zg"]),
+        **{f"rh{p}": float(product["rh"][p]) for p in (50, 98, 100)},
+    }
+
+
 def lvis_study(files):
     rows, seconds = analyse_file(files["lvis-l1b"])
     l2 = read_lvis_l2(files["lvis-l2"])
@@ -178,16 +264,7 @@ def lvis_study(files):
             continue
         ours = _ours(result)
         ours.pop("cover")
-        records.append(
-            {
-                "shot": shot,
-                "ours": ours,
-                "product": {
-                    "ground": float(product["zg"]),
-                    **{f"rh{p}": float(product["rh"][p]) for p in (50, 98, 100)},
-                },
-            }
-        )
+        records.append({"shot": shot, "ours": ours, "product": _lvis_product(product)})
     summary = {
         "shots": len(rows),
         "shots_in_l2": len(records),
@@ -197,6 +274,8 @@ def lvis_study(files):
             q: differences((r["ours"][q], r["product"][q]) for r in records)
             for q in QUANTITIES[:-1]
         },
+        "ground_all_shots": ground_check(rows, lambda s: l2[s]["zg"] if s in l2 else np.nan),
+        "flight_lines": lvis_groups(rows, l2),
     }
     return summary, rows, records
 
@@ -257,6 +336,41 @@ def waveform_figure(examples, path):
     plt.close(fig)
 
 
+def tall_line_figure(rows, l2, lines, path, n_worst=6):
+    """The worst shots (largest |ground − ZG|) of the flight line with the tallest canopy:
+    waveform, chosen ground, its alternative and the L2 ZG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lidarinv.observe.figures import plot_analysis
+
+    tall = max(lines, key=lambda k: np.nan_to_num(lines[k]["product_rh98_median"]))
+    scored = [
+        (abs(result.ground - l2[shot]["zg"]), obs, result, l2[shot]["zg"])
+        for obs, result, _, shot in rows
+        if obs is not None and str(obs.metadata.get("lfid")) == tall
+        and result is not None and np.isfinite(result.ground) and shot in l2
+    ]  # fmt: skip
+    worst = sorted(scored, key=lambda item: -item[0])[:n_worst]
+    if not worst:
+        return tall
+    fig, axes = plt.subplots(1, len(worst), figsize=(3.4 * len(worst), 6.5), squeeze=False)
+    for ax, (error, obs, result, zg) in zip(axes[0], worst):
+        flags = ", ".join(result.flags) or "no flag"
+        title = f"shot {obs.shot_id}: {result.status}\n{flags}\n|ground − ZG| {error:.2f} m"
+        plot_analysis(ax, obs, result, zg, title=title)
+        low = np.nanmin([result.ground, result.ground_alternative, zg])
+        ax.set_ylim(low - 8.0, result.signal_start + 5.0)
+    axes[0, 0].legend(fontsize=6, loc="upper right")
+    fig.suptitle(f"LVIS flight line {tall} (tallest canopy): worst shots against L2 ZG")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return tall
+
+
 def pick_examples(instrument, rows, records):
     """Typical (median |ground difference|), worst, and the shot with most modes."""
     by_shot = {shot: (obs, result) for obs, result, _, shot in rows if result is not None}
@@ -294,6 +408,8 @@ def main(argv=None):
     examples = pick_examples("GEDI", gedi_rows, quality)
     examples += pick_examples("LVIS", lvis_rows, lvis_records)
     waveform_figure(examples, out / "waveforms.png")
+    l2 = read_lvis_l2(files["lvis-l2"])
+    tall = tall_line_figure(lvis_rows, l2, lvis["flight_lines"], out / "tall_line_worst.png")
     for name, part in (("GEDI", gedi), ("LVIS", lvis)):
         print(f"{name}: {part['shots']} shots, statuses {part['statuses']}, flags {part['flags']}")
         for q, d in part["differences"].items():
@@ -301,6 +417,13 @@ def main(argv=None):
                 print(f"  {q:7s} n={d['n']:3d} median {d['median']:+.3f}  |d| median "
                       f"{d['median_abs']:.3f}  p90 {d['p90_abs']:.3f}  within 1 m "
                       f"{d['within_1m']:.3f}")  # fmt: skip
+        print(f"  ground over every shot with one: {part['ground_all_shots']}")
+    for lfid, line in lvis["flight_lines"].items():
+        label = " (tallest canopy)" if lfid == tall else ""
+        print(f"LVIS flight line {lfid}{label}: {line['shots']} shots, L2 RH98 median "
+              f"{line['product_rh98_median']:.1f} m, statuses {line['statuses']}, "
+              f"flags {line['flags']}")  # fmt: skip
+        print(f"  ground over every shot with one: {line['ground_all_shots']}")
     print(f"cover against ρv/ρg: {gedi['cover_ratio']}")
     print(f"wrote {out}")
 

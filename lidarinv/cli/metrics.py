@@ -112,6 +112,23 @@ def _check_outputs(args) -> None:
         check_plot_folder(args.plot, overwrite=args.overwrite, pattern="shot_*.png")
 
 
+def _terrain(path, analysed, records, echo, has_beams) -> int:
+    """Flag grounds that leave their track neighbours (:mod:`lidarinv.observe.terrain`);
+    the records, (index, analysis, observation) in ``analysed``, are rewritten with the
+    check; returns the number of quality shots."""
+    from lidarinv.observe.terrain import TERRAIN_FLAG, file_dem, flag_terrain
+
+    results = [result for _, result, _ in analysed]
+    if results:
+        flag_terrain(results, file_dem(path, results))
+    for index, result, item in analysed:
+        records[index] = _with_beam(result.to_dict(), item, has_beams)
+    outliers = [str(r.shot_id) for r in results if TERRAIN_FLAG in r.flags]
+    if outliers:
+        echo(f"# {TERRAIN_FLAG}: {len(outliers)} shot(s): {', '.join(outliers)}")
+    return sum(r.quality for r in results)
+
+
 def run(args) -> int:
     summary = inspect_file(args.file, args.format, args.beam)
     override = check_instrument(args, summary)
@@ -121,7 +138,7 @@ def run(args) -> int:
     if override:
         print(f"lidarinv metrics: warning: {override}", file=sys.stderr)
     echo(_header(summary.has_beams))
-    records, n_ok, n_quality = [], 0, 0
+    records, n_ok, analysed = [], 0, []
     for item in iter_observations(args.file, summary.format, beams=args.beam, shots=shots):
         beam = _beam_cell(item, summary.has_beams)
         if isinstance(item, ShotError):
@@ -139,13 +156,14 @@ def run(args) -> int:
         if override:
             result.flags.append(override)
         n_ok += result.ok
-        n_quality += result.quality
         echo(_row(result, beam))
+        analysed.append((len(records), result, item))
         records.append(_with_beam(result.to_dict(), item, summary.has_beams))
         if args.plot:
             from lidarinv.observe.figures import save_analysis_figure
 
             save_analysis_figure(item, result, args.plot / f"shot_{item.shot_id}.png")
+    n_quality = _terrain(args.file, analysed, records, echo, summary.has_beams)
     print(f"# {len(records)} shot(s): {n_ok} with metrics, {n_quality} quality")
     if args.json:
         with written_whole(args.json) as partial:

@@ -10,7 +10,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .ground import find_ground
+from .ground import find_ground, lower_flank_width
+from .ground_candidates import candidate_uncertainty, choose_ground, ground_candidates
 from .instrument import ground_return_cdf, pulse_sigma_bins, shot_instrument
 from .metrics import ALL_PERCENTILES, gap_profile, rh_metrics
 from .noise import (
@@ -22,14 +23,28 @@ from .noise import (
     with_smoothed_noise,
 )
 from .observation import Observation
-from .processing import ProcessingSettings, processing_settings
-from .quality import clipped_plateau, sensitivity
+from .processing import GROUND_RULES, ProcessingSettings, processing_settings
+from .quality import INCONSISTENT, clipped_plateau, contradictions, sensitivity
 from .signal import edge_bins, signal_extent, smooth
 
 #: Statuses a shot analysis can end with.
-STATUSES = ("ok", "no signal", "no ground peak", "ground outside window", "noise unknown")
+STATUSES = (
+    "ok",
+    "no signal",
+    "no ground peak",
+    "ground outside window",
+    "noise unknown",
+    INCONSISTENT,
+)
 #: Flags that keep a shot with status "ok" out of the quality set (as L2A quality_flag).
-QUALITY_FLAGS = ("saturated", "clipped", "stale return", "truncated top", "low sensitivity")
+QUALITY_FLAGS = (
+    "saturated",
+    "clipped",
+    "stale return",
+    "truncated top",
+    "low sensitivity",
+    "terrain outlier",
+)
 #: Passes of noise estimation and signal finding (each refines the signal-free bins).
 NOISE_PASSES = 4
 
@@ -67,6 +82,14 @@ class ShotAnalysis:
         waveform, as a Gaussian σ.
     n_modes : int
         Significant modes in the signal (1: a lone ground peak).
+    ground_kind : str
+        ``"mode"`` or ``"shoulder"`` (:mod:`lidarinv.observe.ground_candidates`).
+    ground_evidence : float
+        The chosen ground's evidence (σ of the windowed energy sum or chord excess, the
+        weaker); ``ground_level`` is the significance level it was held to.
+    ground_alternative, ground_alternative_evidence : float (m), float
+        The other plausible ground and its evidence (NaN where there is none); with
+        the flag "ground ambiguous" when it is a plausible return below the chosen one.
     canopy_height : float (m)
         Signal start above the ground (RH100).
     rh : array (m) or None
@@ -81,6 +104,10 @@ class ShotAnalysis:
         Largest canopy cover under which this shot would still detect the ground.
     latitude, longitude : float (degrees)
         Position of the ground return where the file geolocates the window.
+    terrain_expected, terrain_residual, terrain_allowance : float (m)
+        The ground its track neighbours predict, the departure from it and the largest
+        departure the terrain allows (:mod:`lidarinv.observe.terrain`; NaN unless a
+        file's shots were checked together).
     metadata : dict
         The reader's per-shot metadata.
     """
@@ -101,6 +128,11 @@ class ShotAnalysis:
     ground_uncertainty: float = np.nan
     ground_width: float = np.nan
     n_modes: int = 0
+    ground_kind: str = ""
+    ground_evidence: float = np.nan
+    ground_level: float = np.nan
+    ground_alternative: float = np.nan
+    ground_alternative_evidence: float = np.nan
     canopy_height: float = np.nan
     rh: np.ndarray | None = None
     cover: float = np.nan
@@ -110,6 +142,9 @@ class ShotAnalysis:
     sensitivity: float = np.nan
     latitude: float = np.nan
     longitude: float = np.nan
+    terrain_expected: float = np.nan
+    terrain_residual: float = np.nan
+    terrain_allowance: float = np.nan
     metadata: dict = field(default_factory=dict)
 
     @property
@@ -141,9 +176,17 @@ class ShotAnalysis:
             "longitude": self.longitude,
             "ground": self.ground,
             "ground_uncertainty": self.ground_uncertainty,
+            "ground_kind": self.ground_kind,
+            "ground_evidence": self.ground_evidence,
+            "ground_level": self.ground_level,
+            "ground_alternative": self.ground_alternative,
+            "ground_alternative_evidence": self.ground_alternative_evidence,
             "signal_start": self.signal_start,
             "signal_end": self.signal_end,
             "canopy_height": self.canopy_height,
+            "terrain_expected": self.terrain_expected,
+            "terrain_residual": self.terrain_residual,
+            "terrain_allowance": self.terrain_allowance,
             "n_modes": self.n_modes,
             "cover": self.cover,
             "pai": self.pai,
@@ -310,14 +353,72 @@ def analyse(
     result.ground, result.ground_uncertainty = peak.position, peak.uncertainty
     result.ground_width = peak.width
     result.n_modes = peak.n_modes
-    result.canopy_height = extent.start - peak.position
+    rule = GROUND_RULES[settings.ground_rule]
+    lowest = max(edge, 1) if rule["below_back_floor"] else extent.end_index
+    _weak_ground(result, obs, smoothed, free, int(np.rint(peak.index)), lowest, pulse_bins, rule)
+    result.canopy_height = extent.start - result.ground
     _geolocate(result, obs)
     if metrics:
         _metrics(result, obs, smoothed, settings, instrument, np.hypot(pulse_bins, smoothing))
         if result.sensitivity < settings.min_sensitivity:
             result.flags.append("low sensitivity")
+        failed = _contradictions(result, obs, smoothed, instrument, np.hypot(pulse_bins, smoothing))
+        if failed:
+            result.flags.extend(failed)
+            return _stop(result, INCONSISTENT, "; ".join(failed))
     result.quality = not any(flag in QUALITY_FLAGS for flag in result.flags)
     return result
+
+
+def _weak_ground(result, obs, smoothed, free, lowest_mode, lowest_bin, pulse_bins, rule) -> None:
+    """Replace the lowest mode by a weaker, lower return where the noise says it is one
+    (:mod:`lidarinv.observe.ground_candidates`), and report the alternative."""
+    return_bins = float(np.hypot(pulse_bins, result.smoothing_bins))
+    candidates, level, plausible_level = ground_candidates(
+        obs.samples,
+        smoothed,
+        obs.axis,
+        result.noise,
+        lowest_mode=lowest_mode,
+        lowest_bin=lowest_bin,
+        return_sigma_bins=return_bins,
+        signal_free=free if result.noise.source == "samples" else None,
+    )
+    choice = choose_ground(candidates, level, plausible_level, kinds=rule["kinds"])
+    chosen = choice.chosen
+    result.ground_kind, result.ground_level = chosen.kind, level
+    result.ground_evidence = chosen.evidence()
+    if choice.alternative is not None:
+        result.ground_alternative = choice.alternative.position
+        result.ground_alternative_evidence = choice.alternative.evidence()
+    if choice.ambiguous:
+        result.flags.append("ground ambiguous")
+    if chosen is candidates[-1]:
+        return
+    result.ground = chosen.position
+    result.ground_uncertainty = candidate_uncertainty(chosen, return_bins * obs.bin_size)
+    # a ground below the back floor: the signal ends below its return, two widths down
+    result.signal_end = min(result.signal_end, chosen.position - 2.0 * return_bins * obs.bin_size)
+    result.signal_end = max(result.signal_end, float(obs.axis[0]))
+    centred = np.asarray(smoothed, float) - result.noise.mean
+    result.ground_width = lower_flank_width(centred, int(np.rint(chosen.index))) * obs.bin_size
+    result.n_modes += 1
+
+
+def _contradictions(result, obs, smoothed, instrument, return_width_bins) -> list:
+    """Checks of the metrics against each other (:func:`quality.contradictions`) on the
+    smoothed energy above the noise inside the signal extent."""
+    axis = obs.axis
+    inside = (axis >= result.signal_end) & (axis <= result.signal_start)
+    energy = np.clip(np.asarray(smoothed, float) - result.noise.mean, 0.0, None) * inside
+    return contradictions(
+        energy_below_ground=float(energy[axis < result.ground].sum()),
+        total_energy=float(energy.sum()),
+        rh=result.rh,
+        cover=result.cover,
+        return_fwhm_m=2.0 * np.sqrt(2.0 * np.log(2.0)) * return_width_bins * obs.bin_size,
+        ground_cdf=ground_return_cdf(instrument.pulse, result.smoothing_bins * obs.bin_size),
+    )
 
 
 def _faint_signal(smoothed, noise, n_sigmas, guard) -> np.ndarray:

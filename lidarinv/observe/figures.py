@@ -10,6 +10,7 @@ COLOURS = {
     "end": "tab:orange",
     "ground": "tab:brown",
     "product": "tab:purple",
+    "alternative": "tab:red",
     "floor": "0.5",
 }
 
@@ -42,7 +43,8 @@ def plot_analysis(ax, obs, result, product_ground=None, title=None):
     marks = (
         (result.signal_start, "signal start", COLOURS["start"], "-"),
         (result.signal_end, "signal end", COLOURS["end"], "-"),
-        (result.ground, "ground", COLOURS["ground"], "-"),
+        (result.ground, f"ground ({result.ground_kind or 'mode'})", COLOURS["ground"], "-"),
+        (result.ground_alternative, "alternative ground", COLOURS["alternative"], ":"),
         (product_ground, "product ground", COLOURS["product"], "--"),
     )
     for value, label, colour, style in marks:

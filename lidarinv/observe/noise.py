@@ -209,7 +209,7 @@ def filtered_sigma(sigma: float, autocorrelation, weights) -> float:
     return float(sigma * np.sqrt(max(total, 0.0)))
 
 
-def _gaussian_weights(sigma_bins: float):
+def gaussian_weights(sigma_bins: float):
     radius = max(int(np.ceil(4.0 * sigma_bins)), 1)
     x = np.arange(-radius, radius + 1)
     weights = np.exp(-0.5 * (x / sigma_bins) ** 2)
@@ -235,7 +235,7 @@ def with_smoothed_noise(noise: NoiseModel, smoothed, signal_free, smoothing_bins
     interior = free & np.roll(free, 1) & np.roll(free, -1)
     _, slope_sigma = clipped_mean_sigma(slope[interior] if interior.sum() > 2 else slope[free])
     if smoothing_bins:
-        weights, slope_weights = _gaussian_weights(float(smoothing_bins))
+        weights, slope_weights = gaussian_weights(float(smoothing_bins))
         r = noise.autocorrelation
         smoothed_sigma = max(smoothed_sigma, filtered_sigma(noise.sigma, r, weights))
         slope_sigma = max(slope_sigma, filtered_sigma(noise.sigma, r, slope_weights))

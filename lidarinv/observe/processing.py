@@ -34,6 +34,15 @@ from dataclasses import dataclass, fields, replace
 RH_ENERGY = ("above-noise", "recorded")
 #: Noise sources: measured on the shot's samples, or the file's own noise fields.
 NOISE_SOURCES = ("samples", "product")
+#: Ground rules: candidates and how deep they are searched (see
+#: :mod:`lidarinv.observe.ground_candidates`). GEDI L2A takes the lowest mode of the
+#: smoothed waveform above its back floor; LVIS L2 the lowest Gaussian of its
+#: decomposition (Hofton, Minster & Blair 2000), which resolves shoulders and is not held
+#: to a per-sample floor.
+GROUND_RULES = {
+    "lowest-mode": {"kinds": ("mode",), "below_back_floor": False},
+    "lowest-component": {"kinds": ("mode", "shoulder"), "below_back_floor": True},
+}
 #: What the floors count σ of: the smoothed noise, or the recorded (raw) noise.
 FLOOR_UNITS = ("smoothed", "raw")
 
@@ -55,6 +64,9 @@ class ProcessingSettings:
         L2A ATBD defines its thresholds); both σ are measured on the shot.
     prominence_sigmas : float
         Smallest prominence of a mode, in σ of the smoothed noise.
+    ground_rule : str
+        Key of :data:`GROUND_RULES`: which weaker returns below the lowest prominent
+        mode may be the ground (each judged by its energy against the noise).
     min_run : int
         Consecutive bins above a floor that count as signal.
     noise_guard_pulse_widths : float
@@ -86,6 +98,7 @@ class ProcessingSettings:
     end_sigmas: float = 12.0
     floor_units: str = "smoothed"
     prominence_sigmas: float = 3.0
+    ground_rule: str = "lowest-mode"
     min_run: int = 3
     noise_guard_pulse_widths: float = 3.0
     noise_mask_sigmas: float = 3.0
@@ -117,6 +130,10 @@ class ProcessingSettings:
             raise ValueError(f"unknown noise source {self.noise!r}; choose from {NOISE_SOURCES}")
         if self.floor_units not in FLOOR_UNITS:
             raise ValueError(f"unknown floor units {self.floor_units!r}; choose {FLOOR_UNITS}")
+        if self.ground_rule not in GROUND_RULES:
+            raise ValueError(
+                f"unknown ground rule {self.ground_rule!r}; choose from {sorted(GROUND_RULES)}"
+            )
         if self.rh_energy not in RH_ENERGY:
             raise ValueError(f"unknown RH energy {self.rh_energy!r}; choose from {RH_ENERGY}")
 
@@ -124,7 +141,9 @@ class ProcessingSettings:
 #: Processing defaults per instrument preset name; ``None`` for files of unknown origin.
 PROCESSING_DEFAULTS = {
     "gedi": ProcessingSettings(),
-    "lvis": ProcessingSettings(rh_energy="recorded", rh_smoothed=False),
+    "lvis": ProcessingSettings(
+        rh_energy="recorded", rh_smoothed=False, ground_rule="lowest-component"
+    ),
     "slicer": ProcessingSettings(),
     None: ProcessingSettings(),
 }
