@@ -18,7 +18,6 @@ from .derived import (
     leaf_area_index,
     mean_height,
 )
-from .engine import AccuracySettings, PreparedStand, WaveformSimulator
 from .expected import (
     CONVERGED,
     DEFAULT_FREE,
@@ -28,6 +27,7 @@ from .expected import (
     ExpectedWaveforms,
     ModelSettings,
 )
+from .explicit import AccuracySettings, PreparedStand, Waveform, WaveformSimulator
 from .instrument import INSTRUMENT_PRESETS, Instrument, instrument_preset
 from .paper_stands import SUCCESSIONAL, jack_pine_params, successional_params
 from .pulse import PULSE_TYPES, GaussianPulse, MeasuredPulse
@@ -36,7 +36,6 @@ from .scene import Ground, UniformUnderstory
 from .stand import Stand
 from .stand_io import load_stand, save_stand
 from .stand_params import HEIGHT_DISTRIBUTIONS, StandParams, height_distribution
-from .waveform import Waveform
 
 __all__ = [
     "CONVERGED",

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from forward import derived
-from forward.engine import WaveformSimulator
 from forward.examples import EXAMPLE_STANDS
 from forward.expected import ExpectedWaveformModel
+from forward.explicit import WaveformSimulator
 from forward.instrument import instrument_preset
 from forward.realise import realise, scene_extras
 from forward.stand_params import StandParams

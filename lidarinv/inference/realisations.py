@@ -29,8 +29,8 @@ import time
 
 import numpy as np
 
-from forward.engine import WaveformSimulator
 from forward.expected.vectors import CONDITIONING_FIELDS, FIELD_INDEX, params_from_vector
+from forward.explicit import WaveformSimulator
 from forward.footprint import footprint_crown_cover
 from forward.realise import realise, scene_extras
 

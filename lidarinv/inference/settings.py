@@ -11,8 +11,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from forward.engine import AccuracySettings
 from forward.expected import ModelSettings
+from forward.explicit import AccuracySettings
 from lidarinv.io.priors_file import read_priors_file, read_toml
 from lidarinv.observe.processing import ProcessingSettings
 
