@@ -18,6 +18,8 @@ numba, :func:`jit` returns the plain Python function and ``"auto"`` resolves to 
 
 import importlib.util
 
+import numpy as np
+
 #: Whether numba is installed.
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
@@ -51,6 +53,21 @@ def resolve(backend) -> str:
     if backend == "numba" and not AVAILABLE:
         raise ImportError("backend='numba' needs numba installed")
     return "numba" if backend != "numpy" and AVAILABLE else "numpy"
+
+
+def as_float64(x):
+    """``x`` as a C-contiguous float64 array (no copy if it already is one), as the
+    compiled kernels take their arrays.
+
+    Parameters
+    ----------
+    x : array_like
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    return np.ascontiguousarray(x, dtype=np.float64)
 
 
 def jit(function=None, **options):
