@@ -112,7 +112,7 @@ class WaveformSimulator:
     instrument : Instrument
     accuracy : AccuracySettings, float or str, optional
         Accuracy settings, or a tolerance on the relative L1 error of the waveforms
-        (e.g. ``1e-3``); the defaults aim at :data:`forward.accuracy.DEFAULT_TOLERANCE`.
+        (e.g. ``1e-3``); the defaults aim at :data:`forward.explicit.accuracy.DEFAULT_TOLERANCE`.
     """
 
     def __init__(self, instrument, accuracy: AccuracySettings | float | str | None = None):
@@ -206,10 +206,7 @@ class WaveformSimulator:
         cx, cy = (float(c) for c in center)
         if not (np.isfinite(cx) and np.isfinite(cy)):
             raise ValueError(f"footprint centre must be finite, got {center}")
-        if self.scheme == "crowns":
-            footprint = CrownFootprint(self, prepared, cx, cy, ground, understory)
-        else:
-            footprint = ColumnFootprint(self, prepared, cx, cy, ground, understory)
+        footprint = FOOTPRINT_SCHEMES[self.scheme](self, prepared, cx, cy, ground, understory)
         if heights is None:
             ground_reach = self.footprint_radius * np.tan(np.radians(ground.slope_deg))
             top = max(footprint.top, understory.height if understory else 0.0, ground_reach)
@@ -350,3 +347,8 @@ def _with_ground_columns(backend, grid, crowns, sums, slope, ground_nodes, h):
         return sums.layer_return, sums.ground_mass
     gap, mass = ground_gap(grid, crowns, slope, ground_nodes, h, backend=backend)
     return sums.layer_return * ((1.0 - gap) / intercepted), mass
+
+
+#: Footprint schemes by :attr:`AccuracySettings.scheme`: the grid of columns, and the
+#: per-crown quadrature of earlier versions (:mod:`.crown_quadrature`).
+FOOTPRINT_SCHEMES = {"columns": ColumnFootprint, "crowns": CrownFootprint}
