@@ -253,7 +253,8 @@ def point_returns(pulse, heights, centres, weights, support, *, bin_height=None,
     if last <= first:
         return out
     weights = np.asarray(weights, float)
-    if resolve(backend) == "numba" and isinstance(pulse, GaussianPulse):
+    spaced = bin_height is not None or np.size(heights) > 1  # Δz known for the kernel
+    if resolve(backend) == "numba" and isinstance(pulse, GaussianPulse) and spaced:
         sigma = pulse.sigma_m
         dz = float(heights[1] - heights[0]) if bin_height is None else bin_height
         scale = 1.0 if bin_height is None else bin_height
