@@ -4,6 +4,15 @@ It follows the project's physics conventions: heights in m above the ground, tim
 single scattering through turbid crowns with the hot-spot gap probability
 P(z) = exp(−k·G·Ω·L(z)), a Gaussian footprint and a unit-area pulse.
 This package never imports ``lidarinv``.
+
+Two engines share the process modules at the top of the package: :mod:`forward.explicit`
+(waveforms of a stem map, :class:`WaveformSimulator`) and :mod:`forward.expected` (the
+expected waveform of a Poisson stand, :class:`ExpectedWaveformModel`). The process
+modules are written once and called by both: the pulse and its ground return
+(:mod:`.pulse`), the footprint weight (:mod:`.footprint`), the crown shapes and the
+crown radius (:mod:`.crowns`), the instrument (:mod:`.instrument`) and the one switch
+between numpy references and compiled kernels (:mod:`.backends`). The stand descriptions
+(:mod:`.stand`, :mod:`.stand_params`, :mod:`.scene`, :mod:`.realise`, ...) feed both.
 """
 
 from .allometry import SPECIES_ALLOMETRY, Allometry
@@ -18,7 +27,6 @@ from .derived import (
     leaf_area_index,
     mean_height,
 )
-from .engine import AccuracySettings, PreparedStand, WaveformSimulator
 from .expected import (
     CONVERGED,
     DEFAULT_FREE,
@@ -28,6 +36,7 @@ from .expected import (
     ExpectedWaveforms,
     ModelSettings,
 )
+from .explicit import AccuracySettings, PreparedStand, Waveform, WaveformSimulator
 from .instrument import INSTRUMENT_PRESETS, Instrument, instrument_preset
 from .paper_stands import SUCCESSIONAL, jack_pine_params, successional_params
 from .pulse import PULSE_TYPES, GaussianPulse, MeasuredPulse
@@ -36,7 +45,6 @@ from .scene import Ground, UniformUnderstory
 from .stand import Stand
 from .stand_io import load_stand, save_stand
 from .stand_params import HEIGHT_DISTRIBUTIONS, StandParams, height_distribution
-from .waveform import Waveform
 
 __all__ = [
     "CONVERGED",

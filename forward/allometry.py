@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .crowns import crown_radius
+
 
 @dataclass(frozen=True)
 class Allometry:
@@ -95,7 +97,9 @@ class Allometry:
             max(intercept + slope·h, 0).
         """
         h = np.asarray(height_m, float)
-        return np.maximum(self.crown_radius_intercept + self.crown_radius_slope * h, 0.0)
+        return np.maximum(
+            crown_radius(h, self.crown_radius_intercept, self.crown_radius_slope), 0.0
+        )
 
 
 #: Default coefficients by species. Our calibration, not the paper's numbers (see above).

@@ -10,13 +10,21 @@ sampler asks for a few rows at a time. Every such function takes ``backend=`` an
 - ``"numpy"``: the reference;
 - ``"auto"`` (the default everywhere): numba where it can be imported.
 
-Kernels are marked with :func:`jit`. Numba compiles each on its first call (and caches
-it on disk), so a program that only uses the numpy paths never compiles one. Without
+Kernels are marked with :func:`jit`, every compiled kernel of :mod:`forward` (the
+expected model's, the ground pulse of :func:`forward.pulse.point_returns`, the explicit
+engine's column kernel) and of ``lidarinv``. Numba compiles each on its first call and
+caches it on disk (``cache=True``), so the first run of a program compiles it once and
+later runs load it; a program that only uses the numpy paths never compiles one. One
+large kernel may live in a module of its own beside its reference
+(:mod:`forward.explicit.column_kernel_numba`), still chosen by :func:`resolve` in the
+reference's module. Without
 numba, :func:`jit` returns the plain Python function and ``"auto"`` resolves to numpy.
 ``tests/testing.py`` checks every compiled path against its reference.
 """
 
 import importlib.util
+
+import numpy as np
 
 #: Whether numba is installed.
 AVAILABLE = importlib.util.find_spec("numba") is not None
@@ -51,6 +59,21 @@ def resolve(backend) -> str:
     if backend == "numba" and not AVAILABLE:
         raise ImportError("backend='numba' needs numba installed")
     return "numba" if backend != "numpy" and AVAILABLE else "numpy"
+
+
+def as_float64(x):
+    """``x`` as a C-contiguous float64 array (no copy if it already is one), as the
+    compiled kernels take their arrays.
+
+    Parameters
+    ----------
+    x : array_like
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    return np.ascontiguousarray(x, dtype=np.float64)
 
 
 def jit(function=None, **options):

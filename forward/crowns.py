@@ -38,7 +38,7 @@ class CrownShape:
 
 
 # The extents are written with arithmetic and ufuncs only, so that they accept scalars as
-# well as arrays and compile unchanged under numba (forward.column_kernel_numba).
+# well as arrays and compile unchanged under numba (forward.explicit.column_kernel_numba).
 def _cone_extent(rho):
     return 0.0 * rho, 1.0 - rho
 
@@ -143,6 +143,30 @@ def crown_interval(codes, rho, base, length):
         if mask.any():
             s_low[mask], s_high[mask] = CROWN_SHAPES[name].extent(rho[mask])
     return base + s_low * length, base + s_high * length
+
+
+def crown_radius(height, intercept, slope):
+    """Crown radius of trees from their height: the linear crown allometry.
+
+    Written with arithmetic only, so that it takes scalars or arrays and compiles
+    unchanged under numba (:func:`forward.backends.jit`): the stand parameters, the
+    species allometries and the expected model's kernels all call it.
+
+    Parameters
+    ----------
+    height : float or array (m)
+        Tree height h.
+    intercept : float or array (m)
+        Crown-radius intercept r0.
+    slope : float or array (m/m)
+        Crown radius per metre of height r1.
+
+    Returns
+    -------
+    float or array (m)
+        Rc = r0 + r1·h.
+    """
+    return intercept + slope * height
 
 
 def crown_volume(codes, crown_radius, crown_length):

@@ -5,6 +5,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .constants import SPEED_OF_LIGHT_M_PER_NS, ns_to_height
+from .footprint import gaussian_footprint_weight
 from .pulse import GaussianPulse, MeasuredPulse
 
 
@@ -86,7 +87,7 @@ class Instrument:
         Returns
         -------
         float or array (1/m²)
-            :func:`gaussian_footprint_weight` of the instrument's σf.
+            :func:`forward.footprint.gaussian_footprint_weight` of the instrument's σf.
         """
         return gaussian_footprint_weight(squared_distance, self.footprint_sigma_m)
 
@@ -135,26 +136,6 @@ class Instrument:
             "hotspot_k": self.hotspot_k,
             **self.pulse.describe(),
         }
-
-
-def gaussian_footprint_weight(squared_distance, sigma):
-    """Weight of a Gaussian footprint of sd ``sigma`` (m) at squared distance r² (m²).
-
-    Parameters
-    ----------
-    squared_distance : float or array (m²)
-        r² from the beam centre.
-    sigma : float (m)
-        σf.
-
-    Returns
-    -------
-    float or array (1/m²)
-        w(r) = exp(−r²/2σf²)/(2πσf²), of unit integral over the plane (physics
-        conventions, "Footprint").
-    """
-    s2 = sigma * sigma
-    return np.exp(-0.5 * squared_distance / s2) / (2.0 * np.pi * s2)
 
 
 #: k·G·Ω of the :class:`Instrument` defaults (a complete hot spot, spherical leaf angles,

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from .crowns import SHAPE_NAMES
+from .crowns import SHAPE_NAMES, crown_radius
 from .height_families import (  # noqa: F401  (re-exported: the stand's height families)
     HEIGHT_DISTRIBUTIONS,
     HeightFamily,
@@ -255,7 +255,8 @@ class StandParams:
         float or array (m)
             r0 + r1·h.
         """
-        return self.crown_radius_intercept + self.crown_radius_slope * np.asarray(height, float)
+        h = np.asarray(height, float)
+        return crown_radius(h, self.crown_radius_intercept, self.crown_radius_slope)
 
     def with_values(self, **changes) -> "StandParams":
         """A copy with fields replaced (validated again).

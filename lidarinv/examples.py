@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from forward import derived
-from forward.engine import WaveformSimulator
 from forward.examples import EXAMPLE_STANDS
 from forward.expected import ExpectedWaveformModel
+from forward.explicit import WaveformSimulator
 from forward.instrument import instrument_preset
 from forward.realise import realise, scene_extras
 from forward.stand_params import StandParams
@@ -115,7 +115,7 @@ def footprint_truths(stand, centre, waveform, instrument, understory=None) -> di
     stand : forward.stand.Stand
     centre : (float, float) (m)
         The beam centre in stand coordinates.
-    waveform : forward.waveform.Waveform
+    waveform : forward.explicit.Waveform
         The footprint's noise-free waveform, on an axis holding its whole return.
     instrument : forward.instrument.Instrument
     understory : forward.scene.UniformUnderstory, optional

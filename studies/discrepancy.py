@@ -29,8 +29,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from forward import derived
-from forward.engine import WaveformSimulator
 from forward.expected import ExpectedWaveformModel
+from forward.explicit import WaveformSimulator
 from forward.instrument import instrument_preset
 from forward.poisson_stand import crown_count, footprint_gap_cv2
 from forward.realise import realise, scene_extras

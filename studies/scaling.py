@@ -34,7 +34,7 @@ import numpy as np  # noqa: E402
 
 import forward as fw  # noqa: E402
 from forward.expected import ExpectedWaveformModel  # noqa: E402
-from forward.render import ground_samples  # noqa: E402
+from forward.explicit.render import ground_samples  # noqa: E402
 from forward.stand_params import StandParams  # noqa: E402
 
 OUT = Path(__file__).parent / "output"

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import forward as fw
-from forward import column_kernel_numba
-from forward.column_grid import ColumnGrid
+from forward.explicit import column_kernel_numba
+from forward.explicit.column_grid import ColumnGrid
 from tests.reference_model import reference_waveform
 
 needs_numba = pytest.mark.skipif(not column_kernel_numba.AVAILABLE, reason="needs numba")

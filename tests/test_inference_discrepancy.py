@@ -6,8 +6,8 @@ import pytest
 from scipy import stats
 
 from forward import derived, poisson_stand
-from forward.engine import WaveformSimulator
 from forward.expected import ExpectedWaveformModel
+from forward.explicit import WaveformSimulator
 from forward.instrument import instrument_preset
 from forward.realise import realise, scene_extras
 from lidarinv.examples import (

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import forward as fw
-import forward.gap as gap_module
+import forward.explicit.gap as gap_module
 from forward.constants import FWHM_PER_SIGMA
 from forward.expected import ExpectedWaveformModel
 from forward.stand_params import StandParams

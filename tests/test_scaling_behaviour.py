@@ -3,8 +3,8 @@
 import numpy as np
 
 import forward as fw
-import forward.gap as gap_module
-from forward.render import ground_samples
+import forward.explicit.gap as gap_module
+from forward.explicit.render import ground_samples
 
 
 def ring_stand(rng, n, inner, outer):

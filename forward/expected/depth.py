@@ -25,7 +25,9 @@ the two continuations sum to a constant: no exponential per height).
 
 import numpy as np
 
+from ..backends import as_float64 as _f64
 from ..backends import jit, resolve
+from ..crowns import crown_radius
 from .tables import (
     MAX_EXPONENT,
     discounted_tail_row,
@@ -103,13 +105,13 @@ def add_cohort_depth(
     """
     if resolve(backend) == "numba":
         arrays = (pdf, lo, step, stems, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z)
-        _cohort_depth(*(_f64(x) for x in arrays), depth)
+        cohort_depth_kernel(*(_f64(x) for x in arrays), depth)
         return
     a, b = chord_ends(ratio, s_lo, s_hi)
     ku = extinction[:, None] * node_favd
     h = lo[:, None] + step[:, None] * np.arange(pdf.shape[1], dtype=float)
     norm = step * tail_integrals(pdf, tails)[:, 0]
-    radius = r0[:, None] + r1[:, None] * h
+    radius = crown_radius(h, r0[:, None], r1[:, None])
     scale = (np.pi / 1e4) * stems / np.where(norm > 0, norm, 1.0)
     g = scale[:, None] * radius**2 * pdf
     add_tree_depth(g, lo, step, a, b, ku, w, z, depth, tails, a_groups, b_groups)
@@ -136,11 +138,11 @@ def add_point_depth(
     """
     if resolve(backend) == "numba":
         arrays = (stems, height, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z)
-        _point_depth(*(_f64(x) for x in arrays), depth)
+        point_depth_kernel(*(_f64(x) for x in arrays), depth)
         return
     a, b = chord_ends(ratio, s_lo, s_hi)
     ku = extinction[:, None] * node_favd
-    g = (np.pi / 1e4) * stems * (r0 + r1 * height) ** 2
+    g = (np.pi / 1e4) * stems * crown_radius(height, r0, r1) ** 2
     top = (b * height[:, None])[:, :, None]
     bottom = (a * height[:, None])[:, :, None]
     chord = np.clip(top - np.maximum(z[:, None, :], bottom), 0.0, None)
@@ -274,9 +276,8 @@ def add_tree_depth(g, lo, step, a, b, ku, w, z, depth, tails=None, a_groups=None
         depth[:, :cols] += corr.sum(axis=1)
 
 
-def _f64(x):
-    """``x`` as a C-contiguous float64 array (no copy if it already is one)."""
-    return np.ascontiguousarray(x, dtype=np.float64)
+#: :func:`forward.crowns.crown_radius`, compiled for the kernels.
+_crown_radius = jit(crown_radius)
 
 
 @jit
@@ -342,7 +343,7 @@ def _add_tree_depth(g, lo, step, a, b, ku, w, z, depth):
 
 
 @jit
-def _cohort_depth(
+def cohort_depth_kernel(
     pdf, lo, step, stems, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z, depth
 ):
     """Add one cohort's tree optical depth at heights z (n, e) to ``depth``.
@@ -364,7 +365,7 @@ def _cohort_depth(
         discounted_tail_row(pdf[r], 0.0, step[r], mass)
         scale = np.pi / 1e4 * stems[r] / (mass[0] if mass[0] > 0.0 else 1.0)
         for i in range(nodes):
-            radius = r0[r] + r1[r] * (lo[r] + step[r] * i)
+            radius = _crown_radius(lo[r] + step[r] * i, r0[r], r1[r])
             g[r, i] = scale * radius * radius * pdf[r, i]
         c = ratio[r]
         for j in range(n_nodes):
@@ -375,7 +376,7 @@ def _cohort_depth(
 
 
 @jit
-def _point_depth(
+def point_depth_kernel(
     stems, height, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, w, z, depth
 ):  # fmt: skip
     """Add the depth of ``stems`` (stems/ha, (n,)) all of height ``height`` (n,) at
@@ -385,7 +386,7 @@ def _point_depth(
     for r in range(stems.size):  # no rows at all where the model has no such stems
         if stems[r] <= 0.0:
             continue
-        radius = r0[r] + r1[r] * height[r]
+        radius = _crown_radius(height[r], r0[r], r1[r])
         g = np.pi / 1e4 * stems[r] * radius * radius
         c = ratio[r]
         for j in range(s_lo.size):

@@ -11,8 +11,9 @@ the depth and the assembly in one call.
 
 import numpy as np
 
+from ..backends import as_float64 as _f64
 from ..backends import jit, resolve
-from .depth import NO_POINTS, _cohort_depth, _f64, _point_depth, tree_depth
+from .depth import NO_POINTS, cohort_depth_kernel, point_depth_kernel, tree_depth
 
 
 def clip_keeping_energy(canopy, rows):
@@ -255,9 +256,9 @@ def _grid_canopy(
 ):  # fmt: skip
     """The grid path in one call: each row's depth grid z0 + k·``grid_step`` (clipped at the
     ground), the optical depth of every cohort (``pdf``, ``lo``, ``step``, ``stems`` and
-    ``w`` stacked by cohort) as :func:`_cohort_depth` adds it and of the stems of one
+    ``w`` stacked by cohort) as :func:`cohort_depth_kernel` adds it and of the stems of one
     height per row (``point_stems``, ``point_height``, ``point_w``; empty for none)
-    as :func:`_point_depth` adds it, then :func:`_assemble_grid`: the kernel of
+    as :func:`point_depth_kernel` adds it, then :func:`_assemble_grid`: the kernel of
     :func:`grid_canopy`."""
     n = z0.size
     z = np.empty((n, nodes))
@@ -266,11 +267,11 @@ def _grid_canopy(
             z[r, k] = max(z0[r] + grid_step * k, 0.0)
     depth = np.zeros((n, nodes))
     for c in range(pdf.shape[0]):
-        _cohort_depth(
+        cohort_depth_kernel(
             pdf[c], lo[c], step[c], stems[c], r0, r1, ratio, s_lo, s_hi, extinction,
             node_favd, w[c], z, depth,
         )  # fmt: skip
-    _point_depth(
+    point_depth_kernel(
         point_stems, point_height, r0, r1, ratio, s_lo, s_hi, extinction, node_favd, point_w,
         z, depth,
     )  # fmt: skip

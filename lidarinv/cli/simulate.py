@@ -59,7 +59,7 @@ def run(args) -> int:
         stand = fw.Stand.from_csv(args.stemmap)
         instrument = fw.instrument_preset("gedi")
         centers = np.array([[stand.x.mean(), stand.y.mean()]]) if stand.n_trees else [[0, 0]]
-        ground, rho_v = fw.Ground(), fw.engine.DEFAULT_CANOPY_REFLECTANCE
+        ground, rho_v = fw.Ground(), fw.explicit.DEFAULT_CANOPY_REFLECTANCE
     if args.instrument:
         instrument = fw.instrument_preset(args.instrument)
     instrument = instrument.with_overrides(

@@ -9,8 +9,8 @@ priors file holds, beside the parameters' priors, tables that set some of these
 
 from dataclasses import asdict, dataclass, field
 
-from forward.engine import AccuracySettings
 from forward.expected import ModelSettings
+from forward.explicit import AccuracySettings
 from lidarinv.observe.processing import ProcessingSettings
 
 from .model.coordinates import DEFAULT_RIDGES
@@ -46,7 +46,7 @@ class RealisationSettings:
     plot_diameters : float
         Side of the square plot each stand is realised on, in footprint diameters
         (1/e² diameters, 4σf); the footprint sits at its centre.
-    accuracy : forward.engine.AccuracySettings
+    accuracy : forward.explicit.AccuracySettings
         Accuracy of the explicit engine: its column grid at a 1 % L1 tolerance, cheaper
         than the default and closer to it than a coarse per-crown quadrature (the
         CHANGELOG gives the comparison).

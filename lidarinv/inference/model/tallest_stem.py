@@ -10,7 +10,7 @@ law for a height family, draws from it, and the stem itself in an explicit stand
 
 import numpy as np
 
-from forward.instrument import gaussian_footprint_weight
+from forward.footprint import gaussian_footprint_weight
 from forward.poisson_stand import tallest_log_density, tallest_survival
 
 #: The latent parameter of a footprint conditioned on its tallest stem: that stem's height

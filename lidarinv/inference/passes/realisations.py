@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forward.engine import WaveformSimulator
 from forward.expected.vectors import CONDITIONING_FIELDS, FIELD_INDEX, params_from_vector
+from forward.explicit import WaveformSimulator
 from forward.footprint import footprint_crown_cover
 from forward.realise import realise, scene_extras
 
@@ -63,7 +63,7 @@ def realisation_residuals(
     rng : numpy.random.Generator
     plot_diameters : float
         Side of each stand's square plot, in footprint diameters (4σf).
-    accuracy : forward.engine.AccuracySettings, optional
+    accuracy : forward.explicit.AccuracySettings, optional
         The explicit engine's quadrature; its own default if None.
 
     Returns

@@ -1,7 +1,7 @@
 """Footprint sums over a grid of columns: the compiled kernel (needs numba).
 
 :func:`footprint_profiles` has the arguments and results of
-:func:`forward.column_kernel.footprint_profiles` and agrees with it to rounding; it works
+:func:`forward.explicit.column_kernel.footprint_profiles` and agrees with it to rounding; it works
 column by column, so its memory is the crown lists of the bins and a few arrays over the
 layers, whatever the number or size of the crowns.
 
@@ -9,31 +9,33 @@ For each bin of columns the crowns whose discs reach it are copied together. For
 column, every crown over it adds its optical-depth ramp, a kink of +k·G·Ω·u where the
 column enters the crown and −k·G·Ω·u where it leaves; the kinks are shared linearly by
 the two nearest layer edges, so that a running sum of them from the top gives each
-layer's optical depth Δτ exactly (:mod:`forward.gap`). Walking down the column, the gap
+layer's optical depth Δτ exactly (:mod:`forward.explicit.gap`). Walking down the column, the gap
 P falls by the factor exp(−Δτ) in each layer and the layer returns ω·P·(1 − exp(−Δτ)),
 with 1 − exp(−Δτ) taken to full relative precision for thin layers; one exponential is
 taken per run of layers at one Δτ, not per layer. :func:`ground_gap` adds each crown's
 optical depth to the columns of its disc, row by row (one compiled loop per crown
-shape), then sums ω·exp(−τ). :data:`AVAILABLE` is False when numba cannot be imported.
+shape), then sums ω·exp(−τ). The kernels are compiled through :func:`forward.backends.jit`
+(on first use, cached on disk); :mod:`forward.explicit.column_kernel` chooses between them
+and the numpy reference with ``backend=`` (:func:`forward.backends.resolve`).
 """
-
-import importlib.util
 
 import numpy as np
 
-from . import crowns as crown_shapes
-from .column_grid import ColumnGrid, CrownSet, crown_node_ranges
-from .column_kernel import FootprintSums
+from ..backends import AVAILABLE, jit
+from ..crowns import CROWN_SHAPES, SHAPE_NAMES
+from .column_grid import ColumnGrid, CrownSet, FootprintSums, crown_node_ranges
 from .gap import LayerGrid, layer_integral
-
-#: Whether numba is installed (it is imported, and the kernel compiled, on first use).
-AVAILABLE = importlib.util.find_spec("numba") is not None
 
 __all__ = ["AVAILABLE", "footprint_profiles", "ground_gap"]
 
 #: Shape codes, in the order of :data:`forward.crowns.SHAPE_NAMES`.
 _CONE, _ELLIPSOID, _HEMI_ELLIPSOID, _CYLINDER = (
-    crown_shapes.SHAPE_NAMES.index(name)
+    SHAPE_NAMES.index(name) for name in ("cone", "ellipsoid", "hemi-ellipsoid", "cylinder")
+)
+
+#: The shape registry's extents (:mod:`forward.crowns`), compiled to be inlined.
+_cone, _ellipsoid, _hemi_ellipsoid, _cylinder = (
+    jit(CROWN_SHAPES[name].extent, inline="always")
     for name in ("cone", "ellipsoid", "hemi-ellipsoid", "cylinder")
 )
 
@@ -43,6 +45,7 @@ _CONE, _ELLIPSOID, _HEMI_ELLIPSOID, _CYLINDER = (
 _SERIES_DEPTH = 1e-3
 
 
+@jit(inline="always")
 def _extent(code, rho):
     """Crown interval (s_low, s_high) at normalised radius ``rho``: the shape registry's
     extents (:mod:`forward.crowns`), compiled and chosen by code."""
@@ -55,6 +58,7 @@ def _extent(code, rho):
     return _cylinder(rho)
 
 
+@jit(inline="always")
 def _transmission(depth):
     """exp(−depth) and 1 − exp(−depth), the latter to full relative precision."""
     if depth < _SERIES_DEPTH:
@@ -65,6 +69,7 @@ def _transmission(depth):
     return q, 1.0 - q
 
 
+@jit
 def _bin_lists(first, last, bin_nodes, n_bins, x, y, radius, code, base, length, ext, favd):
     """Crown records of every bin, stored bin after bin (a CSR layout).
 
@@ -93,6 +98,7 @@ def _bin_lists(first, last, bin_nodes, n_bins, x, y, radius, code, base, length,
     return counts, records, codes
 
 
+@jit(inline="always")
 def _add_kink(array, position, value):
     """Share ``value`` at fractional edge ``position`` (≥ 0) linearly between its two
     edges; returns the upper one."""
@@ -108,6 +114,7 @@ def _add_kink(array, position, value):
 _MOST_SORTED = 8
 
 
+@jit(inline="always")
 def _sort_marks(values, count):
     """Sort ``values[:count]`` in place by insertion (a few crown edges)."""
     for i in range(1, count):
@@ -119,6 +126,7 @@ def _sort_marks(values, count):
         values[j + 1] = value
 
 
+@jit(inline="always")
 def _run(returns, first, stop, p, depth_rate, h):
     """Walk layers [first, stop) at a constant optical depth per metre ``depth_rate``:
     each layer returns ω·P·(1 − exp(−Δτ)) and passes ω·P·exp(−Δτ) on. Returns ω·P
@@ -131,6 +139,7 @@ def _run(returns, first, stop, p, depth_rate, h):
     return p
 
 
+@jit(inline="always")
 def _walk(returns, kinks, marks, count, p, h):
     """Walk one column down through its crowns, from ω·P = ``p`` at its top; returns
     ω·P below its lowest crown.
@@ -170,12 +179,13 @@ def _walk(returns, kinks, marks, count, p, h):
     return p
 
 
+@jit
 def _footprint_sums(
     nodes, weights, r2, first, last, bin_nodes,
     x, y, radius, code, base, length, ext, favd,
     top, h, n_layers, gx, gy, sloped, ground_first, n_ground,
 ):  # fmt: skip
-    """Compiled :func:`forward.column_kernel.footprint_profiles`: the layer returns and
+    """Compiled :func:`forward.explicit.column_kernel.footprint_profiles`: the layer returns and
     the kinks of crown volume and foliage (edges counted from ``top``), and the ground
     masses on sloped ground."""
     n = nodes.size
@@ -244,6 +254,7 @@ def _footprint_sums(
 _FAR_BELOW = -1e300
 
 
+@jit(inline="always")
 def _chord(nodes, lo, hi, centre, half, start, stop):
     """Range [start, stop) of the nodes among ``nodes[lo:hi]`` (ascending) that lie
     within ``half`` of ``centre``, stepped from the range ``start, stop`` of the row
@@ -260,6 +271,7 @@ def _chord(nodes, lo, hi, centre, half, start, stop):
     return start, stop
 
 
+@jit(inline="always")
 def _crown_depth_row(row, nodes, start, stop, dy0, dx2, inv_r, r2, depth_per_m, extent, z):
     """Add one crown's optical depth to ``row[start:stop]``, columns ``nodes - dy0``
     across from its stem (``dx2`` the squared distance along the other axis); ``z`` =
@@ -275,11 +287,12 @@ def _crown_depth_row(row, nodes, start, stop, dy0, dx2, inv_r, r2, depth_per_m, 
         row[j] += depth_per_m * path * (d2 < r2)
 
 
+@jit(fastmath=True)
 def _ground_gap(
     nodes, weights, r2, first, last, x, y, radius, code, base, length, ext,
     gx, gy, sloped, ground_first, n_ground, inv_h,
 ):  # fmt: skip
-    """Compiled :func:`forward.column_kernel.ground_gap`: each crown adds its optical
+    """Compiled :func:`forward.explicit.column_kernel.ground_gap`: each crown adds its optical
     depth to the columns of its disc, row by row, then Σ ω·exp(−τ) (and the ground
     masses on sloped ground)."""
     n = nodes.size
@@ -323,36 +336,6 @@ def _ground_gap(
     return total, ground[:n_ground]
 
 
-_COMPILED = {}
-
-
-def _kernel():
-    """The compiled kernel: helpers are compiled first, so that the kernel calls them."""
-    if not _COMPILED:
-        from numba import njit
-
-        global _cone, _ellipsoid, _hemi_ellipsoid, _cylinder
-        global _extent, _transmission, _bin_lists, _add_kink, _sort_marks, _run, _walk
-        global _chord, _crown_depth_row
-        inline = njit(cache=True, inline="always")
-        _cone = inline(crown_shapes._cone_extent)
-        _ellipsoid = inline(crown_shapes._ellipsoid_extent)
-        _hemi_ellipsoid = inline(crown_shapes._hemi_ellipsoid_extent)
-        _cylinder = inline(crown_shapes._cylinder_extent)
-        _extent = inline(_extent)
-        _transmission = inline(_transmission)
-        _add_kink = inline(_add_kink)
-        _sort_marks = inline(_sort_marks)
-        _run = inline(_run)
-        _walk = inline(_walk)
-        _chord = inline(_chord)
-        _crown_depth_row = inline(_crown_depth_row)
-        _bin_lists = njit(cache=True)(_bin_lists)
-        _COMPILED["sums"] = njit(cache=True)(_footprint_sums)
-        _COMPILED["ground"] = njit(cache=True, fastmath=True)(_ground_gap)
-    return _COMPILED["sums"]
-
-
 def footprint_profiles(
     grid: ColumnGrid,
     crowns: CrownSet,
@@ -361,14 +344,14 @@ def footprint_profiles(
     ground_nodes=None,
     bin_nodes=16,
 ) -> FootprintSums:
-    """Compiled :func:`forward.column_kernel.footprint_profiles` (same arguments, same
+    """Compiled :func:`forward.explicit.column_kernel.footprint_profiles` (same arguments, same
     results to rounding)."""
     first, last = crown_node_ranges(grid, crowns)
     top = layers.bottom + layers.n_layers * layers.thickness
     sloped = ground_nodes is not None
     ground_first, n_ground = ground_nodes if sloped else (0, 0)
     f64 = np.ascontiguousarray
-    returns, volume, foliage, ground = _kernel()(
+    returns, volume, foliage, ground = _footprint_sums(
         f64(grid.nodes, float), f64(grid.weights, float), float(grid.radius) ** 2,
         first, last, int(bin_nodes),
         *(f64(a, float) for a in (crowns.x, crowns.y, crowns.radius)),
@@ -383,14 +366,13 @@ def footprint_profiles(
 
 
 def ground_gap(grid: ColumnGrid, crowns: CrownSet, slope=(0.0, 0.0), ground_nodes=None, h=1.0):
-    """Compiled :func:`forward.column_kernel.ground_gap` (same arguments, same results to
+    """Compiled :func:`forward.explicit.column_kernel.ground_gap` (same arguments, same results to
     rounding)."""
-    _kernel()
     first, last = crown_node_ranges(grid, crowns)
     sloped = ground_nodes is not None
     ground_first, n_ground = ground_nodes if sloped else (0, 0)
     f64 = np.ascontiguousarray
-    gap, ground = _COMPILED["ground"](
+    gap, ground = _ground_gap(
         f64(grid.nodes, float), f64(grid.weights, float), float(grid.radius) ** 2, first, last,
         *(f64(a, float) for a in (crowns.x, crowns.y, crowns.radius)),
         f64(crowns.shape, np.int64),

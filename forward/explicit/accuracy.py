@@ -40,7 +40,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .crowns import SHAPE_NAMES
+from ..backends import BACKENDS
+from ..crowns import SHAPE_NAMES
 
 #: Relative L1 error the default settings aim for.
 DEFAULT_TOLERANCE = 3e-3
@@ -71,8 +72,6 @@ EDGE_RESOLUTION = 1.0 / 8.0
 
 #: Truncation tolerance of the per-crown quadrature (``scheme == "crowns"``).
 CROWN_SCHEME_TRUNCATION = 1e-3
-
-BACKENDS = ("auto", "numba", "numpy")
 
 
 @dataclass(frozen=True)

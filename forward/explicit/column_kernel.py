@@ -1,9 +1,9 @@
-"""Footprint sums over a grid of columns: the numpy reference.
+"""Footprint sums over a grid of columns: the numpy reference, and the backend switch.
 
 :func:`footprint_profiles` walks the grid in square tiles of columns. For each tile it
 finds the crowns whose discs reach it, the crossing of every column with every crown above
 it (exact heights where the column enters and leaves the crown), and hands the crossings
-to :func:`forward.gap.column_profiles`, which gives each column's gap probability exactly
+to :func:`forward.explicit.gap.column_profiles`, which gives each column's gap probability exactly
 at the layer edges. Sums over the tiles are footprint means, since a column's weight is
 its share of the footprint. Memory is bounded by a tile's columns times the crowns that
 reach it, whatever the number or size of the crowns.
@@ -11,44 +11,21 @@ reach it, whatever the number or size of the crowns.
 :func:`ground_gap` gives the footprint-mean gap at the ground alone, on columns of its
 own: each crown adds its optical depth to the columns under it.
 
-:mod:`forward.column_kernel_numba` computes the same sums in compiled code, under the
-same names; both give the same numbers to rounding.
+:mod:`forward.explicit.column_kernel_numba` computes the same sums in compiled code,
+under the same names; both functions here take ``backend=`` (:mod:`forward.backends`) and
+give the same numbers to rounding either way.
 """
-
-from dataclasses import dataclass
 
 import numpy as np
 
-from .column_grid import ColumnGrid, CrownSet, crown_node_ranges
-from .crowns import crown_interval
+from ..backends import resolve
+from ..crowns import crown_interval
+from . import column_kernel_numba
+from .column_grid import ColumnGrid, CrownSet, FootprintSums, crown_node_ranges
 from .gap import LayerGrid, column_profiles
 
 #: Fewest columns per side of a tile.
 MIN_TILE = 16
-
-
-@dataclass(frozen=True)
-class FootprintSums:
-    """Footprint-weighted sums over the columns, on a :class:`~forward.gap.LayerGrid`.
-
-    Attributes
-    ----------
-    layer_return : array (n_layers)
-        Σ ω·(P(top) − P(bottom)) of each layer, bottom layer first: the canopy return per
-        unit ρv.
-    crown_volume : array (n_layers)
-        Σ ω·(crown path length in the layer) (m³ of crown per m² of ground).
-    foliage_area : array (n_layers)
-        Σ ω·u·(crown path length in the layer) (m² of foliage per m² of ground).
-    ground_mass : array or None
-        Sloped ground only: Σ ω·P(ground) of the columns whose ground lies at each node
-        ``(ground_first + k)·h`` (linear deposit between nodes); None on flat ground.
-    """
-
-    layer_return: np.ndarray
-    crown_volume: np.ndarray
-    foliage_area: np.ndarray
-    ground_mass: np.ndarray | None
 
 
 def footprint_profiles(
@@ -58,6 +35,8 @@ def footprint_profiles(
     slope=(0.0, 0.0),
     ground_nodes=None,
     bin_nodes=16,
+    *,
+    backend="auto",
 ) -> FootprintSums:
     """Footprint sums of the columns of ``grid`` under ``crowns``.
 
@@ -77,7 +56,19 @@ def footprint_profiles(
     bin_nodes : int
         Columns per side of a bin of the compiled kernel; a tile here is at least
         :data:`MIN_TILE` columns wide (the sums do not depend on the tiling).
+    backend : str
+        ``"auto"``, ``"numba"`` (:mod:`forward.explicit.column_kernel_numba`) or
+        ``"numpy"`` (:func:`forward.backends.resolve`); both give the same sums to
+        rounding.
+
+    Returns
+    -------
+    FootprintSums
     """
+    if resolve(backend) == "numba":
+        return column_kernel_numba.footprint_profiles(
+            grid, crowns, layers, slope, ground_nodes, bin_nodes
+        )
     bin_nodes = max(int(bin_nodes), MIN_TILE)
     h = layers.thickness
     n = grid.nodes.size
@@ -158,12 +149,15 @@ def _deposit(target, position, value):
     np.add.at(target, np.minimum(node + 1, target.size - 1), value * frac)
 
 
-def ground_gap(grid: ColumnGrid, crowns: CrownSet, slope=(0.0, 0.0), ground_nodes=None, h=1.0):
+def ground_gap(
+    grid: ColumnGrid, crowns: CrownSet, slope=(0.0, 0.0), ground_nodes=None, h=1.0, *,
+    backend="auto",
+):  # fmt: skip
     """Footprint-mean gap at the ground, P̄(0) = Σ ω·exp(−τ), over the columns of ``grid``.
 
     Only the whole optical depth τ of each column is needed, τ = Σ k·G·Ω·u·(path length
     of each crown over it), so the ground can have columns of its own, closer than those
-    of the profiles (:meth:`forward.accuracy.AccuracySettings.ground_spacing_for`). Each
+    of the profiles (:meth:`forward.explicit.accuracy.AccuracySettings.ground_spacing_for`). Each
     crown adds its depth to the columns of its bounding square.
 
     Parameters
@@ -176,6 +170,8 @@ def ground_gap(grid: ColumnGrid, crowns: CrownSet, slope=(0.0, 0.0), ground_node
         Sloped ground: first ground node and number of nodes, at multiples of ``h``.
     h : float (m)
         Spacing of the ground nodes.
+    backend : str
+        ``"auto"``, ``"numba"`` or ``"numpy"``, as for :func:`footprint_profiles`.
 
     Returns
     -------
@@ -185,6 +181,8 @@ def ground_gap(grid: ColumnGrid, crowns: CrownSet, slope=(0.0, 0.0), ground_node
         Sloped ground: Σ ω·P(ground) of the columns whose ground lies at each node
         (linear deposit between nodes); None on flat ground.
     """
+    if resolve(backend) == "numba":
+        return column_kernel_numba.ground_gap(grid, crowns, slope, ground_nodes, h)
     nodes = grid.nodes
     first, last = crown_node_ranges(grid, crowns)
     depth = np.zeros((nodes.size, nodes.size))

@@ -4,11 +4,14 @@ digitiser").
 The canopy return of each fine layer, ρv·(P̄(top) − P̄(bottom)), is spread evenly over the
 layer and convolved with the pulse (:func:`forward.pulse.layer_kernel`); the ground
 returns ρg times its share of P̄ at each ground height, convolved with the pulse at that
-height. Samples are point values at the bin centres times Δz.
+height (:func:`forward.pulse.point_returns`, the ground of the expected model too; its
+numpy reference, whichever backend the engine's columns use). Samples are point values
+at the bin centres times Δz.
 """
 
 import numpy as np
 
+from ..pulse import point_returns
 from .waveform import Waveform
 
 
@@ -85,17 +88,33 @@ def _convolve_layers(sim, layer_energy, first, n_bins):
 
 
 def ground_samples(sim, nodes, weights, heights):
-    """Ground samples per unit ρg: each node's weight times the pulse at its height."""
-    dz = sim.instrument.bin_height
-    low, high = sim.pulse_support
+    """Ground samples per unit ρg: each node's weight times the pulse at its height.
+
+    Parameters
+    ----------
+    sim : WaveformSimulator
+        Supplies the instrument and the pulse's support.
+    nodes : array (m)
+        Ground heights.
+    weights : array
+        Each ground height's share of P̄ at the ground.
+    heights : array (m)
+        Bin centres.
+
+    Returns
+    -------
+    array (bins,)
+        Σ_k weights[k]·Δz·p(heights − nodes[k]) (:func:`forward.pulse.point_returns`),
+        each node within its own pulse support.
+    """
+    instrument = sim.instrument
     out = np.zeros(heights.size)
     for z, w in zip(nodes, weights):
-        if w == 0.0:
-            continue
-        lo = np.searchsorted(heights, z + low)
-        hi = np.searchsorted(heights, z + high, side="right")
-        if hi > lo:
-            out[lo:hi] += w * dz * sim.instrument.pulse.pdf(heights[lo:hi] - z)
+        if w != 0.0:  # one node at a time: each within its own support
+            out += point_returns(
+                instrument.pulse, heights, [z], [w], sim.pulse_support,
+                bin_height=instrument.bin_height, backend="numpy",
+            )[0]  # fmt: skip
     return out
 
 

@@ -4,13 +4,14 @@ The footprint mean of any column quantity is a quadrature over vertical columns,
 
     Q̄ = ∫ w(x, y)·Q(x, y) dA ≈ Σ_ij ω_i·ω_j·Q(x_i, y_j),
 
-with w the Gaussian footprint truncated where its outer weight equals a tolerance
-(conventions, "Footprint"). The columns form a tensor grid: the nodes along each axis are
-the midpoints of equal-probability cells of a Gaussian of standard deviation
-``stretch·σf``, so the columns are densest under the beam centre and sparser where the
-footprint weight is low, and each node's weight is the footprint's Gaussian factor times
-its cell width. A column sees every crown above it, so overlapping crowns need no special
-treatment: where crowns overlap, their optical depths add in the column.
+with w the Gaussian footprint (:mod:`forward.footprint`) truncated where its outer
+weight equals a tolerance (conventions, "Footprint"). The columns form a tensor grid: the
+nodes along each axis are the midpoints of equal-probability cells of a Gaussian of
+standard deviation ``stretch·σf``, so the columns are densest under the beam centre and
+sparser where the footprint weight is low, and each node's weight is the footprint's
+Gaussian factor (:func:`forward.footprint.footprint_falloff`) times its cell width. A
+column sees every crown above it, so overlapping crowns need no special treatment: where
+crowns overlap, their optical depths add in the column.
 
 The kernels bin the crowns near a footprint by blocks of columns
 (:func:`crown_node_ranges` gives each crown's nodes), so each column tests only the crowns
@@ -22,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import ndtr, ndtri
 
-from .footprint import truncation_radius
+from ..footprint import footprint_falloff, truncation_radius
 
 #: Ratio of the column density's Gaussian width to the footprint's σf. Columns as dense
 #: as the footprint weight would leave its rim coarse, evenly spaced ones would spend most
@@ -72,7 +73,7 @@ class ColumnGrid:
             raise ValueError(f"column spacing must be positive, got {spacing} m")
         radius = float(truncation_radius(sigma, tolerance))
         nodes, widths = _axis_nodes(radius, spacing, None if stretch is None else stretch * sigma)
-        weights = np.exp(-0.5 * (nodes / sigma) ** 2) * widths
+        weights = footprint_falloff((nodes / sigma) ** 2) * widths
         return cls(nodes, weights / np.sqrt(_disc_total(nodes, weights, radius)), radius, spacing)
 
 
@@ -153,7 +154,7 @@ class CrownSet:
     def effective_count(self, sigma) -> float:
         """Effective number (Σω)²/Σω² of crowns sharing a footprint of σf = ``sigma`` (m),
         ω being a crown's area times the footprint's weight at its stem."""
-        share = self.radius**2 * np.exp(-0.5 * (self.x**2 + self.y**2) / sigma**2)
+        share = self.radius**2 * footprint_falloff((self.x**2 + self.y**2) / sigma**2)
         total = float(np.sum(share * share))
         return float(np.sum(share)) ** 2 / total if total > 0 else 0.0
 
@@ -179,3 +180,27 @@ def crown_node_ranges(grid: ColumnGrid, crowns: CrownSet):
         np.searchsorted(nodes, c + crowns.radius, side="left") - 1 for c in (crowns.x, crowns.y)
     ]
     return np.column_stack(first).astype(np.int64), np.column_stack(last).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class FootprintSums:
+    """Footprint-weighted sums over the columns, on a :class:`~forward.explicit.gap.LayerGrid`.
+
+    Attributes
+    ----------
+    layer_return : array (n_layers)
+        Σ ω·(P(top) − P(bottom)) of each layer, bottom layer first: the canopy return per
+        unit ρv.
+    crown_volume : array (n_layers)
+        Σ ω·(crown path length in the layer) (m³ of crown per m² of ground).
+    foliage_area : array (n_layers)
+        Σ ω·u·(crown path length in the layer) (m² of foliage per m² of ground).
+    ground_mass : array or None
+        Sloped ground only: Σ ω·P(ground) of the columns whose ground lies at each node
+        ``(ground_first + k)·h`` (linear deposit between nodes); None on flat ground.
+    """
+
+    layer_return: np.ndarray
+    crown_volume: np.ndarray
+    foliage_area: np.ndarray
+    ground_mass: np.ndarray | None

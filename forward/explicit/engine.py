@@ -4,15 +4,16 @@
 accuracy settings (the truncation radius, the fine layers, the pulse kernel); a
 :class:`PreparedStand` holds per-stand work (stem search, crown extinction). Each
 footprint then costs the crowns that reach it, the footprint sums of the gap profiles of
-its columns, exact at the fine-layer edges (:mod:`forward.column_kernel`, compiled in
-:mod:`forward.column_kernel_numba`), and one short convolution with the pulse.
+its columns, exact at the fine-layer edges (:mod:`.column_kernel`, compiled in
+:mod:`.column_kernel_numba`, chosen by the one ``backend=`` switch of
+:mod:`forward.backends`), and one short convolution with the pulse.
 
-The columns lie on a grid over the truncated footprint (:mod:`forward.column_grid`) whose
-spacing follows from the accuracy settings' tolerance (:mod:`forward.accuracy`). The
+The columns lie on a grid over the truncated footprint (:mod:`.column_grid`) whose
+spacing follows from the accuracy settings' tolerance (:mod:`.accuracy`). The
 ground gap P̄(0) has closer columns of its own, which need only each column's whole
-optical depth (:func:`forward.column_kernel.ground_gap`); the canopy returns are scaled
+optical depth (:func:`.column_kernel.ground_gap`); the canopy returns are scaled
 to 1 − P̄(0), so that canopy and ground energy still add up. The
-per-crown disc quadrature of earlier versions (:mod:`forward.footprint`) is kept as the
+per-crown disc quadrature of earlier versions (:mod:`.crown_quadrature`) is kept as the
 scheme ``"crowns"``.
 """
 
@@ -21,15 +22,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import column_kernel, column_kernel_numba
+from ..backends import resolve
+from ..footprint import truncation_radius
+from ..pulse import layer_kernel
+from ..scene import Ground, UniformUnderstory
+from ..stand import Stand
 from .accuracy import AccuracySettings, as_accuracy
 from .column_grid import ColumnGrid, CrownSet, bin_columns
-from .footprint import CrownFootprint, DiscQuadrature, truncation_radius
+from .column_kernel import footprint_profiles, ground_gap
+from .crown_quadrature import CrownFootprint, DiscQuadrature
 from .gap import ColumnProfiles, LayerGrid, gap_from_returns, with_understory
-from .pulse import layer_kernel
 from .render import render_waveform
-from .scene import Ground, UniformUnderstory
-from .stand import Stand
 from .waveform import Waveform
 
 __all__ = [
@@ -109,7 +112,7 @@ class WaveformSimulator:
     instrument : Instrument
     accuracy : AccuracySettings, float or str, optional
         Accuracy settings, or a tolerance on the relative L1 error of the waveforms
-        (e.g. ``1e-3``); the defaults aim at :data:`forward.accuracy.DEFAULT_TOLERANCE`.
+        (e.g. ``1e-3``); the defaults aim at :data:`forward.explicit.accuracy.DEFAULT_TOLERANCE`.
     """
 
     def __init__(self, instrument, accuracy: AccuracySettings | float | str | None = None):
@@ -130,7 +133,7 @@ class WaveformSimulator:
         )
         self.pulse_support = instrument.pulse.support(accuracy.pulse_tolerance)
         self.quadrature = DiscQuadrature(*accuracy.crown_nodes) if self.scheme == "crowns" else None
-        self.backend = _backend(accuracy.backend)
+        self.backend = resolve(accuracy.backend)  # "numba" or "numpy"
         self._grids: dict[tuple[float, float], ColumnGrid] = {}
 
     # public API ----------------------------------------------------------------------
@@ -203,10 +206,7 @@ class WaveformSimulator:
         cx, cy = (float(c) for c in center)
         if not (np.isfinite(cx) and np.isfinite(cy)):
             raise ValueError(f"footprint centre must be finite, got {center}")
-        if self.scheme == "crowns":
-            footprint = CrownFootprint(self, prepared, cx, cy, ground, understory)
-        else:
-            footprint = ColumnFootprint(self, prepared, cx, cy, ground, understory)
+        footprint = FOOTPRINT_SCHEMES[self.scheme](self, prepared, cx, cy, ground, understory)
         if heights is None:
             ground_reach = self.footprint_radius * np.tan(np.radians(ground.slope_deg))
             top = max(footprint.top, understory.height if understory else 0.0, ground_reach)
@@ -262,15 +262,6 @@ class WaveformSimulator:
         return LayerGrid(origin + first * h, h, last - first), first
 
 
-def _backend(name):
-    """The column kernel module for a backend name: numba where asked for or available."""
-    if name == "numba" and not column_kernel_numba.AVAILABLE:
-        raise ImportError("AccuracySettings(backend='numba') needs numba installed")
-    if name != "numpy" and column_kernel_numba.AVAILABLE:
-        return column_kernel_numba
-    return column_kernel
-
-
 class ColumnFootprint:
     """One footprint under the grid-of-columns scheme: its crowns, then its profiles."""
 
@@ -301,8 +292,14 @@ class ColumnFootprint:
             reach = max(grid.radius, ground_grid.radius) * np.tan(np.radians(ground.slope_deg))
             k0 = int(np.floor(-reach / h)) - 1
             ground_nodes = (k0, int(np.ceil(reach / h)) - k0 + 2)
-        sums = sim.backend.footprint_profiles(
-            grid, crowns, layers, ground.gradient, ground_nodes, bin_columns(grid, typical)
+        sums = footprint_profiles(
+            grid,
+            crowns,
+            layers,
+            ground.gradient,
+            ground_nodes,
+            bin_columns(grid, typical),
+            backend=sim.backend,
         )
         layer_return, ground_mass = sums.layer_return, sums.ground_mass
         separate = ground_grid.spacing < grid.spacing or ground_grid.radius > grid.radius
@@ -333,7 +330,7 @@ class ColumnFootprint:
             "columns": grid.n_columns,
             "ground_column_spacing_m": ground_grid.spacing if separate else grid.spacing,
             "ground_truncation_tolerance": sim.accuracy.ground_tolerance,
-            "backend": "numba" if sim.backend is column_kernel_numba else "numpy",
+            "backend": sim.backend,
         }
         return profiles, (layers, first), nodes, weights, settings
 
@@ -348,5 +345,10 @@ def _with_ground_columns(backend, grid, crowns, sums, slope, ground_nodes, h):
     intercepted = float(sums.layer_return.sum())
     if intercepted <= 0.0:  # no crown over the profiles' columns: nothing to scale
         return sums.layer_return, sums.ground_mass
-    gap, mass = backend.ground_gap(grid, crowns, slope, ground_nodes, h)
+    gap, mass = ground_gap(grid, crowns, slope, ground_nodes, h, backend=backend)
     return sums.layer_return * ((1.0 - gap) / intercepted), mass
+
+
+#: Footprint schemes by :attr:`AccuracySettings.scheme`: the grid of columns, and the
+#: per-crown quadrature of earlier versions (:mod:`.crown_quadrature`).
+FOOTPRINT_SCHEMES = {"columns": ColumnFootprint, "crowns": CrownFootprint}
