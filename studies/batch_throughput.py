@@ -12,7 +12,7 @@ loop over the same inversion, with no pool and no file, is the baseline for the 
 storing its results into a file on its own gives the coordinator's cost per shot, which
 caps the throughput however many workers there are. The inversion is
 ``lidarinv.inference.invert_shot`` with default settings, or with ``--fake`` the
-stand-in ``tests.fake_inversion.fake_invert`` (``--delay`` s per shot; 0 measures the
+stand-in ``lidarinv.testing.fake_inversion.fake_invert`` (``--delay`` s per shot; 0 measures the
 batch machinery alone).
 
     python studies/batch_throughput.py --fake [--shots 400] [--workers 1 2]
@@ -28,26 +28,22 @@ so an orbit holds ≈ 5.4 million shots if GEDI records all the way round; the s
 land and cloud-free is lower, so the figures are an upper bound.
 """
 
-import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import h5py
+import harness
 import numpy as np
 
 import forward as fw
 from lidarinv.batch import ResultStore, invert_many
 from lidarinv.observe import observe
+from lidarinv.testing.fake_inversion import FakeSettings, fake_invert
 
-# the stand-in inversion is a test double (tests/fake_inversion.py), not installed
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from tests.fake_inversion import FakeSettings, fake_invert
-
-OUT = Path(__file__).parent / "output" / "batch_throughput.json"
+OUT = harness.OUTPUT / "batch_throughput.json"
 
 #: Assumed GEDI shots per orbit: 4 beams × 242 Hz × 5560 s (see the module docstring).
 GEDI_SHOTS_PER_SECOND = 4 * 242
@@ -128,7 +124,7 @@ def batch_run(observations, invert, settings, workers, folder):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, tag=False)
     parser.add_argument("--fake", action="store_true", help="stand-in inversion (overhead)")
     parser.add_argument("--delay", type=float, default=0.0, help="fake seconds per shot")
     parser.add_argument("--shots", type=int, help="shots in the large run (small: 1/4)")
@@ -203,7 +199,7 @@ def main():
         "coordinator (one HDF5 group per shot, flushed) sets the rate",
     }
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(result, indent=1))
+    harness.write_json(args.output, result)
     print(f"{kind}: serial {1e3 * serial_per_shot:.2f} ms/shot "
           f"({serial_core_hour:,.0f} footprints/core-hour)")  # fmt: skip
     for run in runs:

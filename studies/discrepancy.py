@@ -17,14 +17,13 @@ modelled relative spread.
 Writes studies/output/discrepancy/{summary.json,discrepancy.png}.
 """
 
-import argparse
 import json
 from dataclasses import replace
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
+import harness
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -77,9 +76,8 @@ def crowns_spanning(params, heights, area):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, seed=0, tag=False)
     parser.add_argument("--realisations", type=int, default=300)
-    parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     instrument = instrument_preset("gedi")
@@ -111,11 +109,10 @@ def main():
         ax.set_xlabel("canopy return sd (apparent reflectance per bin)")
     axes[0].set_ylabel("height above ground (m)")
     axes[0].legend()
-    folder = Path(__file__).parent / "output" / "discrepancy"
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = harness.output_folder("discrepancy")
     fig.tight_layout()
     fig.savefig(folder / "discrepancy.png", dpi=100)
-    (folder / "summary.json").write_text(json.dumps(summary, indent=1))
+    harness.write_json(folder / "summary.json", summary)
     print(json.dumps(summary, indent=1))
 
 

@@ -13,14 +13,11 @@ relative error of the sampled variances (a check that every mixture samples the 
 Writes studies/output/ensemble_moves[_TAG]/summary.json and tau.png.
 """
 
-import argparse
-import json
-from pathlib import Path
-
 import emcee
 import matplotlib
 
 matplotlib.use("Agg")
+import harness
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -66,12 +63,10 @@ def run(mixture, walkers, steps, log_prob, covariance, seed):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, seed=0)
     parser.add_argument("--ndim", type=int, default=9)
     parser.add_argument("--steps", type=int, default=6000)
     parser.add_argument("--walkers", type=int, nargs="+", default=[32, 64, 96])
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     log_prob, covariance = gaussian_target(args.ndim, np.random.default_rng(args.seed))
     rows = []
@@ -81,15 +76,14 @@ def main():
             row.update(run(mixture, walkers, args.steps, log_prob, covariance, args.seed + 1))
             rows.append(row)
             print(row, flush=True)
-    folder = Path(__file__).parent / "output" / ("ensemble_moves" + args.tag)
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = harness.output_folder("ensemble_moves", args.tag)
     summary = {
         "ndim": args.ndim,
         "steps": args.steps,
         "condition_number": float(np.linalg.cond(covariance)),
         "runs": rows,
     }
-    (folder / "summary.json").write_text(json.dumps(summary, indent=1))
+    harness.write_json(folder / "summary.json", summary)
     fig, ax = plt.subplots(figsize=(6, 4))
     for label in MIXTURES:
         mine = [r for r in rows if r["mixture"] == label]

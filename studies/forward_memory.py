@@ -19,13 +19,12 @@ per-crown quadrature of earlier versions (4 × 8 nodes).
 Writes studies/output/forward_memory/summary.json.
 """
 
-import argparse
-import json
 import subprocess
 import sys
-from pathlib import Path
 
-OUT = Path(__file__).parent / "output" / "forward_memory"
+import harness
+
+OUT = harness.OUTPUT / "forward_memory"
 LIMIT_MB = 200.0
 
 SCENES = {
@@ -95,7 +94,7 @@ def run(scene, engine):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, tag=False)
     parser.add_argument("--skip-old", action="store_true", help="leave out the old engine")
     args = parser.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
@@ -113,7 +112,7 @@ def main():
         if e.startswith("columns")
     )
     summary = {"limit_mb": LIMIT_MB, "columns_within_limit": within, "scenes": results}
-    (OUT / "summary.json").write_text(json.dumps(summary, indent=2))
+    harness.write_json(OUT / "summary.json", summary, indent=2)
     print(f"wrote {OUT / 'summary.json'}")
 
 

@@ -14,7 +14,7 @@ and ``slicer``: SLICER (σf 2.5 m, 4 ns pulse) over 1200 stems/ha of hemi-ellips
 
 The converged reference is the column engine at 0.03 m spacing (SLICER 0.015 m),
 truncation 1e-7 and four times the default fine layers; the brute-force model of
-``tests/reference_model.py`` (0.1 m columns, exact in z, independent code) is run on the
+``lidarinv/testing/reference_model.py`` (0.1 m columns, exact in z, independent code) is run on the
 first footprint of each stand as a check and as a point on the figure. The old engine is
 the per-crown quadrature (4 × 8 nodes, its default, 8 × 16 and 16 × 32); the new one the
 column engine at tolerances 1e-2, 3e-3 (its default), 1e-3 and 3e-4. Errors: relative L1
@@ -31,25 +31,19 @@ was.
 Writes studies/output/forward_runtime_vs_error/{runtime_vs_error.png,summary.json}.
 """
 
-import os
+import harness
 
-for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ[_name] = "1"
+harness.pin_threads()
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import sys  # noqa: E402
+import os  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.reference_model
-
 import forward as fw  # noqa: E402
-from tests.reference_model import reference_waveform  # noqa: E402
+from lidarinv.testing.reference_model import reference_waveform  # noqa: E402
 
-OUT = Path(__file__).parent / "output" / "forward_runtime_vs_error"
+OUT = harness.OUTPUT / "forward_runtime_vs_error"
 HALF_WIDTH = 50.0  # m: the plots are 100 m × 100 m
 OLD = [(4, 8), (8, 16), (16, 32)]
 TOLERANCES = [1e-2, 3e-3, 1e-3, 3e-4]
@@ -251,7 +245,7 @@ def brute_force(stand, instrument, center, ref, quick):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, tag=False)
     parser.add_argument("--quick", action="store_true", help="fewer footprints and settings")
     parser.add_argument("--kinds", default=",".join(KINDS), help="comma-separated stand kinds")
     args = parser.parse_args()
@@ -275,7 +269,7 @@ def main():
         "load_average": [load_start, os.getloadavg()[0]],
         "kinds": results,
     }
-    (OUT / "summary.json").write_text(json.dumps(summary, indent=2))
+    harness.write_json(OUT / "summary.json", summary, indent=2)
     plot(results)
     print(f"wrote {OUT / 'summary.json'} and {OUT / 'runtime_vs_error.png'}")
 

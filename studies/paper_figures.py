@@ -17,13 +17,12 @@ convergence.
 Writes studies/output/paper_figures/{fig1,fig6,fig7,fig9,fig10}.png and summary.json.
 """
 
-import argparse
 import json
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
+import harness
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -40,7 +39,7 @@ from forward.paper_stands import (
     successional_scene,
 )
 
-OUT = Path(__file__).parent / "output" / "paper_figures"
+OUT = harness.OUTPUT / "paper_figures"
 SHAPES = ("cone", "ellipsoid", "hemi-ellipsoid")
 #: The explicit engine run to convergence, against which the figures' footprints are
 #: checked (their relative L1 error is recorded in the summary).
@@ -264,7 +263,7 @@ def successional_figures(quick):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, tag=False)
     parser.add_argument("--quick", action="store_true", help="three footprints, no realisations")
     args = parser.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
@@ -310,7 +309,7 @@ def main():
         "successional": su,
         "quick": args.quick,
     }
-    (OUT / "summary.json").write_text(json.dumps(summary, indent=2))
+    harness.write_json(OUT / "summary.json", summary, indent=2)
     print(json.dumps(checks, indent=2))
 
 

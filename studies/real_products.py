@@ -23,11 +23,10 @@ against the products) and ``waveforms.png`` (example shots with floors, signal e
 ground marked) and ``tall_line_worst.png``.
 """
 
-import argparse
-import json
 import time
 from pathlib import Path
 
+import harness
 import numpy as np
 
 from lidarinv.io import (
@@ -387,13 +386,11 @@ def pick_examples(instrument, rows, records):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--data", default=str(DEFAULT_DATA), help="folder, or 'examples'")
-    parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args(argv)
     files = _files(args.data)
-    out = HERE / "output" / f"real_products{args.tag}"
-    out.mkdir(parents=True, exist_ok=True)
+    out = harness.output_folder("real_products", args.tag)
     gedi, gedi_rows, gedi_records = gedi_study(files)
     lvis, lvis_rows, lvis_records = lvis_study(files)
     summary = {
@@ -402,7 +399,7 @@ def main(argv=None):
         "gedi": gedi,
         "lvis": lvis,
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
+    harness.write_json(out / "summary.json", summary)
     quality = [r for r in gedi_records if r["quality"]]
     scatter_figure(quality, lvis_records, out / "scatter.png")
     examples = pick_examples("GEDI", gedi_rows, quality)

@@ -32,13 +32,12 @@ they are compared on) and reports the coverage per kind as well (``by_kind``).
 Writes studies/output/recovery[_inverse_crime]/{summary.json,shots.json,*.png}.
 """
 
-import os
+import harness
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"
+harness.pin_threads()
 
-import argparse  # noqa: E402
 import json  # noqa: E402
+import os  # noqa: E402
 import time  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 from dataclasses import asdict, replace  # noqa: E402
@@ -244,11 +243,11 @@ def _inside(row, name, lo, hi) -> bool:
     return row["posterior"][name][lo] <= row["truth"][name] <= row["posterior"][name][hi]
 
 
-def _coverage(rows, name, lo, hi):
+def coverage_of(rows, name, lo, hi):
     return float(np.mean([_inside(r, name, lo, hi) for r in rows]))
 
 
-def _known(rows, name):
+def known_rows(rows, name):
     """Rows with a true value of ``name`` (the footprint's tallest stem only exists in an
     explicit stand) and a posterior one (the footprint's cover only where drawn)."""
     return [r for r in rows if np.isfinite(r["truth"].get(name, np.nan)) and name in r["posterior"]]
@@ -262,7 +261,7 @@ def standardised_errors(rows, name) -> np.ndarray:
     return (truth - q["median"]) / np.where(half > 0, half, np.nan)
 
 
-def _calibration(rows, name):
+def calibration_of(rows, name):
     """How the truths sit in the intervals: the median and robust spread (half the 16–84 %
     range) of z = (truth − median)/(half the 68 % interval), near 0 and 1 for calibrated
     intervals (a spread below 1: too wide; a median off 0: off-centre), and the share of
@@ -297,7 +296,7 @@ def _outside_support(rows, name, support):
     inside = [r for r in rows if lower <= r["truth"][name] <= upper]
     return {
         "outside_prior_support": len(rows) - len(inside),
-        "coverage_90_inside_support": _coverage(inside, name, "p05", "p95") if inside else None,
+        "coverage_90_inside_support": coverage_of(inside, name, "p05", "p95") if inside else None,
     }
 
 
@@ -317,7 +316,7 @@ def summarise(rows, by_kind=True, supports=None):
     }
     out["binomial_95_range"] = {"68": bounds[0.68], "90": bounds[0.90]}
     for name in QUANTITIES:
-        known = _known(good, name)
+        known = known_rows(good, name)
         if not known:
             continue
         truth = np.array([r["truth"][name] for r in known])
@@ -325,11 +324,11 @@ def summarise(rows, by_kind=True, supports=None):
         err = median - truth
         out["quantities"][name] = {
             "n": len(known),
-            "coverage_68": _coverage(known, name, "p16", "p84"),
-            "coverage_90": _coverage(known, name, "p05", "p95"),
+            "coverage_68": coverage_of(known, name, "p16", "p84"),
+            "coverage_90": coverage_of(known, name, "p05", "p95"),
             "bias": float(err.mean()),
             "rmse": float(np.sqrt(np.mean(err**2))),
-            **_calibration(known, name),
+            **calibration_of(known, name),
         }
         if supports and name in supports:
             out["quantities"][name].update(_outside_support(known, name, supports[name]))
@@ -342,7 +341,7 @@ def summarise(rows, by_kind=True, supports=None):
             "ground_elevation": ("ground", "ground_elevation"),
         }
         for name, (direct_key, truth_key) in pairs.items():
-            both = _known(direct_ok, truth_key)
+            both = known_rows(direct_ok, truth_key)
             if not both:
                 continue
             d = np.array([r["direct"][direct_key] for r in both])
@@ -385,10 +384,10 @@ def plot(rows, folder):
     import matplotlib.pyplot as plt
 
     good = [r for r in rows if "posterior" in r]
-    names = [name for name in QUANTITIES if _known(good, name)]
+    names = [name for name in QUANTITIES if known_rows(good, name)]
     fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.4), squeeze=False)
     for ax, name in zip(axes[0], names):
-        known = _known(good, name)
+        known = known_rows(good, name)
         t = np.array([r["truth"][name] for r in known])
         q = {
             k: np.array([r["posterior"][name][k] for r in known]) for k in ("p05", "median", "p95")
@@ -411,10 +410,9 @@ def plot(rows, folder):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, seed=1, workers=os.cpu_count())
     parser.add_argument("--n", type=int, default=200)
     parser.add_argument("--max-steps", type=int, default=4000)
-    parser.add_argument("--workers", type=int, default=os.cpu_count())
     parser.add_argument("--inverse-crime", action="store_true")
     parser.add_argument("--discrepancy", type=float, default=InversionSettings().discrepancy)
     parser.add_argument(
@@ -422,8 +420,6 @@ def main():
         default=InversionSettings().discrepancy_model,
         choices=sorted(DISCREPANCY_MODELS),
     )
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--tag", default="", help="suffix of the output folder")
     parser.add_argument(
         "--truth",
         default="study",
@@ -525,7 +521,7 @@ def main():
             rows.append(row)
             print(f"shot {row['shot']}: {row.get('error', 'ok')}", flush=True)
             # kept as they come, so an interrupted run keeps its finished shots
-            (folder / "shots.json").write_text(json.dumps(rows, indent=1))
+            harness.write_json(folder / "shots.json", rows)
     summary = summarise(rows, supports=prior_supports(settings))
     summary.update(
         {
@@ -548,8 +544,8 @@ def main():
             "workers": args.workers,
         }
     )
-    (folder / "shots.json").write_text(json.dumps(rows, indent=1))
-    (folder / "summary.json").write_text(json.dumps(summary, indent=1))
+    harness.write_json(folder / "shots.json", rows)
+    harness.write_json(folder / "summary.json", summary)
     if summary["n_inverted"]:
         plot(rows, folder)
     print(json.dumps(summary, indent=1))
@@ -557,7 +553,7 @@ def main():
 
 def _output_folder(inverse_crime, tag) -> Path:
     name = "recovery_inverse_crime" if inverse_crime else "recovery"
-    return Path(__file__).parent / "output" / (name + tag)
+    return harness.OUTPUT / (name + tag)
 
 
 def resummarise(folder: Path) -> None:
@@ -570,7 +566,7 @@ def resummarise(folder: Path) -> None:
     settings = InversionSettings() if priors is None else InversionSettings.from_priors_file(priors)
     summary = summarise(rows, supports=prior_supports(settings))
     record = {k: v for k, v in old.items() if k not in summary}  # the run's settings
-    (folder / "summary.json").write_text(json.dumps({**summary, **record}, indent=1))
+    harness.write_json(folder / "summary.json", {**summary, **record})
     print(json.dumps(summary, indent=1))
 
 

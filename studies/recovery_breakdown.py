@@ -11,19 +11,16 @@ height it also compares the posterior median with the footprint's tallest stem.
 Writes studies/output/recovery{TAG}/breakdown_{QUANTITY}.{json,png}.
 """
 
-import argparse
 import json
 from itertools import pairwise
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
+import harness
 import matplotlib.pyplot as plt
 import numpy as np
-from recovery import QUANTITIES, _calibration, _coverage, _known, standardised_errors
-
-OUTPUT = Path(__file__).parent / "output"
+from recovery import QUANTITIES, calibration_of, coverage_of, known_rows, standardised_errors
 
 #: Bins (lower edges, the last an upper edge) of what the shots are split by.
 SPLITS = {
@@ -51,7 +48,7 @@ def footprint_gap(row) -> float:
 
 def breakdown(rows, quantity) -> dict:
     """Per split and bin: shots, 68 % coverage and z median of ``quantity``."""
-    rows = _known([r for r in rows if "posterior" in r], quantity)
+    rows = known_rows([r for r in rows if "posterior" in r], quantity)
     out = {"quantity": quantity, "n": len(rows), "all": _summary(rows, quantity)}
     for key, edges in SPLITS.items():
         out[key] = []
@@ -74,13 +71,13 @@ def _summary(rows, quantity) -> dict:
         return {"n": 0}
     return {
         "n": len(rows),
-        "coverage_68": _coverage(rows, quantity, "p16", "p84"),
-        "z_median": _calibration(rows, quantity)["z_median"],
+        "coverage_68": coverage_of(rows, quantity, "p16", "p84"),
+        "z_median": calibration_of(rows, quantity)["z_median"],
     }
 
 
 def plot(rows, quantity, path):
-    rows = _known([r for r in rows if "posterior" in r], quantity)
+    rows = known_rows([r for r in rows if "posterior" in r], quantity)
     z = standardised_errors(rows, quantity)
     top = np.array([r["truth"]["top_height"] for r in rows])
     cover = np.array([r["truth"]["cover"] for r in rows])
@@ -100,17 +97,17 @@ def plot(rows, quantity, path):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, tag=False)
     parser.add_argument("--tag", default="_calibration", help="suffix of the recovery run")
     parser.add_argument("--quantity", default="top_height", choices=QUANTITIES)
     args = parser.parse_args()
-    folder = OUTPUT / f"recovery{args.tag}"
+    folder = harness.OUTPUT / f"recovery{args.tag}"
     shots = folder / "shots.json"
     if not shots.exists():
         raise SystemExit(f"no recovery run at {shots}; run studies/recovery.py --tag {args.tag}")
     rows = json.loads(shots.read_text())
     summary = breakdown(rows, args.quantity)
-    (folder / f"breakdown_{args.quantity}.json").write_text(json.dumps(summary, indent=1))
+    harness.write_json(folder / f"breakdown_{args.quantity}.json", summary)
     plot(rows, args.quantity, folder / f"breakdown_{args.quantity}.png")
     print(json.dumps(summary, indent=1))
 

@@ -22,16 +22,13 @@ estimated from the largest τ and the measured cost per step.
 Writes studies/output/sampling_coordinates[_TAG]/summary.json and tau.png.
 """
 
-import os
+import harness
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"
+harness.pin_threads()
 
-import argparse  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
 from dataclasses import replace  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import emcee  # noqa: E402
 import matplotlib  # noqa: E402
@@ -122,10 +119,9 @@ def plot(summary, path):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, seed=11)
     parser.add_argument("--n", type=int, default=6)
     parser.add_argument("--steps", type=int, default=8000)
-    parser.add_argument("--seed", type=int, default=11)
     parser.add_argument("--coordinates", nargs="+", default=list(COORDINATES), choices=COORDINATES)
     parser.add_argument(
         "--discrepancy-model",
@@ -133,7 +129,6 @@ def main():
         choices=sorted(DISCREPANCY_MODELS),
     )
     add_sampler_options(parser)
-    parser.add_argument("--tag", default="", help="suffix of the output folder")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     base = replace(InversionSettings(discrepancy_model=args.discrepancy_model), **TEN_FREE)
@@ -172,9 +167,8 @@ def main():
         "shots": shots,
         "skipped": skipped,
     }
-    folder = Path(__file__).parent / "output" / ("sampling_coordinates" + args.tag)
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "summary.json").write_text(json.dumps(summary, indent=1))
+    folder = harness.output_folder("sampling_coordinates", args.tag)
+    harness.write_json(folder / "summary.json", summary)
     plot(summary, folder / "tau.png")
     print(json.dumps(medians, indent=1))
 

@@ -20,15 +20,13 @@ The machine this ran on may be shared: the minimum over repeats is reported, and
 JSON records the load average at the start and end.
 """
 
-import os
+import harness
 
-for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ[_name] = "1"
+harness.pin_threads()
 
-import argparse  # noqa: E402
 import json  # noqa: E402
+import os  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -37,7 +35,7 @@ from forward.expected import ExpectedWaveformModel  # noqa: E402
 from forward.explicit.render import ground_samples  # noqa: E402
 from forward.stand_params import StandParams  # noqa: E402
 
-OUT = Path(__file__).parent / "output"
+OUT = harness.OUTPUT
 INSTRUMENT = fw.instrument_preset("gedi")
 DENSITY = 0.1  # stems per m² (1000 stems/ha)
 
@@ -270,7 +268,7 @@ def plot(summary, path):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, tag=False)
     parser.add_argument("--quick", action="store_true", help="fewer sizes and repeats")
     args = parser.parse_args(argv)
     repeats = 3 if args.quick else 7
@@ -288,11 +286,10 @@ def main(argv=None):
         "expected_model": expected_model(args.quick, repeats),
         "load_average_start_end": [load_start[0], os.getloadavg()[0]],
     }
-    directory = OUT / "scaling"
-    directory.mkdir(parents=True, exist_ok=True)
+    directory = harness.output_folder("scaling")
+    harness.write_json(directory / "scaling.json", summary, indent=2)
+    harness.write_json(OUT / "scaling.json", summary, indent=2)
     text = json.dumps(summary, indent=2, default=float)
-    (directory / "scaling.json").write_text(text)
-    (OUT / "scaling.json").write_text(text)
     plot(summary, directory / "scaling.png")
     print(text)
     return summary

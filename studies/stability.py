@@ -22,20 +22,19 @@ Writes ``studies/output/stability.json``. ``--quick`` runs a smaller sweep (a ra
 subset of the extreme grid: 120 engine scenes instead of 900, fewer expected-model rows).
 """
 
-import argparse
 import itertools
 import json
 import time
 import warnings
-from pathlib import Path
 
+import harness
 import numpy as np
 
 import forward as fw
 from forward.expected import ExpectedWaveformModel
 from forward.stand_params import StandParams
 
-OUT = Path(__file__).parent / "output"
+OUT = harness.OUTPUT
 INVARIANTS = ("finite", "gap_range", "gap_monotone", "non_negative", "energy", "errors")
 
 #: Problems this study found in the explicit engine and that were fixed (with their
@@ -367,7 +366,7 @@ def run_expected(quick):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, tag=False)
     parser.add_argument("--quick", action="store_true", help="smaller sweep")
     args = parser.parse_args(argv)
     rng = np.random.default_rng(20260601)
@@ -396,8 +395,7 @@ def main(argv=None):
         "seconds": round(time.perf_counter() - start, 1),
     }
     OUT.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(summary, indent=2, default=float)
-    (OUT / "stability.json").write_text(text)
+    harness.write_json(OUT / "stability.json", summary, indent=2)
     print(json.dumps({k: summary[k] for k in ("engine", "invalid_inputs")}, default=float)[:2000])
     print("expected model:", expected["per_invariant"], expected["worst"])
     return summary

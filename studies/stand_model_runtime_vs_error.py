@@ -17,17 +17,14 @@ Writes studies/output/stand_model_runtime_vs_error/{pareto.png,summary.json} and
 a table.
 """
 
-import os
+import harness
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"
+harness.pin_threads()
 
-import argparse  # noqa: E402
 import dataclasses  # noqa: E402
 import itertools  # noqa: E402
-import json  # noqa: E402
+import os  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -36,7 +33,7 @@ from forward.backends import AVAILABLE as NUMBA_AVAILABLE  # noqa: E402
 from forward.expected import CONVERGED, ExpectedWaveformModel, ModelSettings  # noqa: E402
 from forward.stand_params import StandParams  # noqa: E402
 
-OUT = Path(__file__).parent / "output" / "stand_model_runtime_vs_error"
+OUT = harness.OUTPUT / "stand_model_runtime_vs_error"
 TARGET_US, TARGET_ERROR = 20.0, 1e-3
 
 
@@ -112,7 +109,7 @@ def table(rows, title):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, tag=False)
     parser.add_argument("--quick", action="store_true", help="fewer settings and repeats")
     parser.add_argument("--repeats", type=int, default=None, help="timed calls per setting")
     args = parser.parse_args()
@@ -167,7 +164,7 @@ def main():
         "pareto_front": pareto(rows),
         "settings": rows,
     }
-    (OUT / "summary.json").write_text(json.dumps(summary, indent=2))
+    harness.write_json(OUT / "summary.json", summary, indent=2)
     plot(rows, defaults, OUT / "pareto.png")
     print(table(defaults, "default ModelSettings()"))
     print()

@@ -1,6 +1,6 @@
 """Batch inversion: process pool, any executor, Dask, resume, failures, killed workers, CLI.
 
-All tests use the fake inversion of ``tests/fake_inversion.py`` (importable by worker
+All tests use the fake inversion of ``lidarinv/testing/fake_inversion.py`` (importable by worker
 processes); the real single-shot inversion is not needed.
 """
 
@@ -16,7 +16,7 @@ import pytest
 from lidarinv.batch import ResultStore, invert_many, read_result
 from lidarinv.cli import main
 from lidarinv.io import write_observations
-from tests.fake_inversion import FakeResult, FakeSettings, fake_invert, fake_observations
+from lidarinv.testing.fake_inversion import FakeResult, FakeSettings, fake_invert, fake_observations
 
 
 def _observations(n, errors=()):
@@ -215,7 +215,7 @@ def test_store_refuses_other_settings_and_redoes_half_written_shots(tmp_path):
         with pytest.raises(ValueError, match="another inversion"):
             invert_many(obs, FakeSettings(delay=0.0), output=out, executor=pool,
                         invert=_Recorder(), progress=False)  # fmt: skip
-        name = "tests.fake_inversion.fake_invert"
+        name = "lidarinv.testing.fake_inversion.fake_invert"
         with ResultStore(out, repr(FakeSettings(delay=0.0)), name) as store:
             assert not store.is_done(1) and store.is_done(0)
         again = invert_many(obs, FakeSettings(delay=0.0), output=out, executor=pool,
@@ -228,7 +228,7 @@ def test_cli_batch(tmp_path, capsys):
     write_observations(path, _observations(5))
     out = tmp_path / "cli.h5"
     args = ["batch", str(path), "-o", str(out), "--workers", "1", "--no-progress",
-            "--invert", "tests.fake_inversion:fake_invert", "--seed", "4"]  # fmt: skip
+            "--invert", "lidarinv.testing.fake_inversion:fake_invert", "--seed", "4"]  # fmt: skip
     assert main([*args, "--shot", "1", "--shot", "3"]) == 0
     assert "2 done, 0 failed, 0 skipped" in capsys.readouterr().out
     assert main(args) == 0
@@ -251,7 +251,7 @@ def test_cli_batch_on_a_dask_scheduler(tmp_path, capsys):
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:  # fmt: skip
         args = ["batch", str(path), "-o", str(out), "--scheduler", cluster.scheduler_address,
-                "--no-progress", "--invert", "tests.fake_inversion:fake_invert"]  # fmt: skip
+                "--no-progress", "--invert", "lidarinv.testing.fake_inversion:fake_invert"]  # fmt: skip
         assert main(args) == 0
     assert "4 done, 0 failed, 0 skipped" in capsys.readouterr().out
     assert len(_csv(tmp_path / "sched.csv")) == 4

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from lidarinv.io import write_observations
-from tests.fake_inversion import fake_observations
+from lidarinv.testing.fake_inversion import fake_observations
 
 ROOT = Path(__file__).resolve().parents[1]
 

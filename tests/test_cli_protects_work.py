@@ -17,7 +17,7 @@ from lidarinv.cli.options import inversion_settings
 from lidarinv.cli.outputs import save_group
 from lidarinv.inference import InversionResult
 from lidarinv.io import write_observations
-from tests.fake_inversion import fake_observations
+from lidarinv.testing.fake_inversion import fake_observations
 
 INVERT_EXAMPLE = ["invert", "--example", "gedi-mixed", "--quiet"]
 
@@ -195,7 +195,13 @@ def _batch_file(tmp_path, n=4, unreadable=()):
     return path
 
 
-FAKE = ["--workers", "1", "--no-progress", "--invert", "tests.fake_inversion:fake_invert"]
+FAKE = [
+    "--workers",
+    "1",
+    "--no-progress",
+    "--invert",
+    "lidarinv.testing.fake_inversion:fake_invert",
+]
 
 
 def test_batch_exits_non_zero_when_a_shot_failed(tmp_path, capsys):

@@ -22,9 +22,15 @@ from lidarinv.cli.kernels import NOTICE, announce_compilation, cold_kernels
 from lidarinv.inference import InversionResult
 from lidarinv.io import example_file, write_observations
 from lidarinv.io.formats import inspect_file
-from tests.fake_inversion import fake_observations
+from lidarinv.testing.fake_inversion import fake_observations
 
-FAKE_BATCH = ["--workers", "1", "--no-progress", "--invert", "tests.fake_inversion:fake_invert"]
+FAKE_BATCH = [
+    "--workers",
+    "1",
+    "--no-progress",
+    "--invert",
+    "lidarinv.testing.fake_inversion:fake_invert",
+]
 
 
 @pytest.fixture
@@ -300,7 +306,7 @@ def test_batch_progress_total_is_max_shots(tmp_path, capsys):
     path = tmp_path / "obs.h5"
     write_observations(path, list(fake_observations(12, np.random.default_rng(1))))
     args = ["batch", str(path), "-o", str(tmp_path / "r.h5"), "--max-shots", "3"]
-    fake = ["--workers", "1", "--invert", "tests.fake_inversion:fake_invert"]
+    fake = ["--workers", "1", "--invert", "lidarinv.testing.fake_inversion:fake_invert"]
     assert main([*args, *fake]) == 0
     bars = capsys.readouterr().err.replace("\r", "\n")
     assert "3/3" in bars and "/12" not in bars

@@ -1,5 +1,5 @@
 """Every compiled kernel against its numpy twin, through the one ``backend=`` switch and
-the one check of tests/testing.py: the expected model's processes (depth, point stems,
+the one check of lidarinv.testing: the expected model's processes (depth, point stems,
 grid assembly, the grid path in one call, ground), the stand mapping's identities and the
 ridge maps. The likelihood and the RH kernels are checked against their references in
 tests/test_inference_likelihood.py, the stand mapping as a whole in
@@ -16,7 +16,7 @@ from lidarinv.inference.model import coordinates
 from lidarinv.inference.model.parameters import DEFAULT_STRUCTURE_PRIORS, default_space
 from lidarinv.inference.model.stand import TOP_SDS, StandMapping, default_template
 from lidarinv.inference.model.stand_columns import DOMINANT_PER_HA, stand_columns
-from tests.testing import assert_backends_agree, assert_fast_path
+from lidarinv.testing import assert_backends_agree, assert_fast_path
 
 pytest.importorskip("numba")
 

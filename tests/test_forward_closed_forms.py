@@ -6,7 +6,7 @@ from scipy import integrate
 from scipy.special import i0e
 
 import forward as fw
-from tests.reference_model import reference_waveform
+from lidarinv.testing.reference_model import reference_waveform
 
 
 def test_bare_ground_is_the_pulse_times_ground_reflectance(gedi):

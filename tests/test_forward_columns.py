@@ -7,7 +7,7 @@ import pytest
 import forward as fw
 from forward.explicit import column_kernel_numba
 from forward.explicit.column_grid import ColumnGrid
-from tests.reference_model import reference_waveform
+from lidarinv.testing.reference_model import reference_waveform
 
 needs_numba = pytest.mark.skipif(not column_kernel_numba.AVAILABLE, reason="needs numba")
 

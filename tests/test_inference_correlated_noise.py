@@ -5,12 +5,12 @@ gain integrated out; where it cannot apply, the noise stays white and it says wh
 import numpy as np
 import pytest
 from scipy.integrate import quad
-from testing import dense_log_likelihood
 
 from lidarinv.inference.likelihood.ar_noise import AutoregressiveNoise
 from lidarinv.inference.likelihood.gaussian import ShotLikelihood
 from lidarinv.inference.model.priors import LogUniform
 from lidarinv.inference.shot import WindowData
+from lidarinv.testing import dense_log_likelihood
 
 BINS = 40
 

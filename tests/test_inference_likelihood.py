@@ -11,7 +11,7 @@ from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, WindowData, build_problem
 from lidarinv.inference.likelihood.gaussian import model_moments, row_log_likelihood
 from lidarinv.inference.model.waveform import relative_heights
-from tests.testing import (
+from lidarinv.testing import (
     assert_fast_path,
     log_likelihood,
     relative_heights_reference,

@@ -5,7 +5,7 @@ import pytest
 
 from lidarinv.inference.model.parameters import DEFAULT_STRUCTURE_PRIORS
 from lidarinv.inference.model.stand import StandMapping, default_template
-from tests.testing import assert_fast_path
+from lidarinv.testing import assert_fast_path
 
 
 def _rows(rng, n):

@@ -2,17 +2,12 @@
 each generator gives a valid stem map of the kind it names, and a shot carries the
 footprint truths the posterior is compared with."""
 
-import sys
-from pathlib import Path
-
 import numpy as np
+import out_of_family_stands  # studies/out_of_family_stands.py (pyproject's pythonpath)
 import pytest
 from scipy import stats
 
 from forward.stand_params import height_distribution
-
-sys.path.append(str(Path(__file__).resolve().parents[1] / "studies"))
-import out_of_family_stands  # a study module, beside recovery.py
 
 SIGMA_F = 6.25  # GEDI's footprint σf (m)
 

@@ -1,23 +1,18 @@
 """The recovery study's calibration summary (``studies/recovery.py``) on shots with known
 posteriors."""
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import stats
 
-STUDY = Path(__file__).resolve().parents[1] / "studies" / "recovery.py"
-
 
 @pytest.fixture(scope="module")
 def recovery():
-    spec = importlib.util.spec_from_file_location("recovery_study", STUDY)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    import recovery  # studies/recovery.py (pyproject's pythonpath)
+
+    return recovery
 
 
 def gaussian_rows(rng, n, width_factor):
@@ -33,7 +28,7 @@ def gaussian_rows(rng, n, width_factor):
 
 def test_calibrated_intervals_give_unit_spread_and_five_percent_tails(recovery):
     rows = gaussian_rows(np.random.default_rng(1), 4000, 1.0)
-    out = recovery._calibration(rows, "cover")
+    out = recovery.calibration_of(rows, "cover")
     assert abs(out["z_median"]) < 0.05
     assert out["z_spread"] == pytest.approx(1.0, abs=0.05)
     assert out["below_p05"] == pytest.approx(0.05, abs=0.012)
@@ -42,7 +37,7 @@ def test_calibrated_intervals_give_unit_spread_and_five_percent_tails(recovery):
 
 def test_intervals_twice_too_wide_halve_the_spread(recovery):
     rows = gaussian_rows(np.random.default_rng(2), 4000, 2.0)
-    out = recovery._calibration(rows, "cover")
+    out = recovery.calibration_of(rows, "cover")
     assert out["z_spread"] == pytest.approx(0.5, abs=0.03)
     assert out["below_p05"] + out["above_p95"] < 0.01
 
@@ -80,10 +75,9 @@ def test_truth_priors_accept_a_priors_file_that_sets_the_latent_stem(recovery, t
     assert settings.tallest_stem and "tallest_stem_position" not in {**priors, **fixed}
 
 
-def test_breakdown_finds_off_centring_where_it_is(monkeypatch):
+def test_breakdown_finds_off_centring_where_it_is():
     """Intervals centred half a width low on tall stands only: the breakdown by top
     height shows it there and nowhere else, and not by τ."""
-    monkeypatch.syspath_prepend(str(STUDY.parent))
     from recovery_breakdown import breakdown
 
     rng = np.random.default_rng(3)
@@ -104,11 +98,10 @@ def test_breakdown_finds_off_centring_where_it_is(monkeypatch):
     assert out["tallest_stem_below_top_m"] == pytest.approx([0.5, 0.5, 0.5])
 
 
-def test_breakdown_by_footprint_gap(monkeypatch):
+def test_breakdown_by_footprint_gap():
     """Intervals centred low by the gap between the stand's top and the footprint's
     tallest stem: the split by that gap finds the shift in the shots with a wide gap;
     runs without explicit stands (NaN tallest stem) fall in no bin."""
-    monkeypatch.syspath_prepend(str(STUDY.parent))
     from recovery_breakdown import breakdown
 
     rng = np.random.default_rng(5)

@@ -52,7 +52,7 @@ def row_log_likelihood(
     -----
     y_j ~ N(b·1_j + a·W_j, σn² + g·a·W_j + (η·a·W_j)² + v_j) over the exactly recorded
     bins (compiled, :func:`gaussian_exact`), censored bins log Φ((floor − μ)/s) and
-    saturated ones log Φ((μ − max)/s) (numpy). ``tests/testing.py`` holds the slow
+    saturated ones log Φ((μ − max)/s) (numpy). :mod:`lidarinv.testing` holds the slow
     reference it is checked against.
     """
     fixed = np.zeros(data.axis.size) if fixed_variance is None else fixed_variance

@@ -1,6 +1,8 @@
 """Slow, obviously correct references, and the one check of a fast path against them.
 
-Every fast path of lidarinv is checked here against a reference that is slow and plain:
+For lidarinv's tests and studies alike (as celerite2 ships ``testing.py``): nothing else
+in the package imports it. Every fast path is checked against a reference that is slow
+and plain:
 
 - each compiled kernel against its numpy twin, through the one ``backend=`` switch of
   :mod:`forward.backends` (:func:`assert_backends_agree`);
@@ -9,12 +11,14 @@ Every fast path of lidarinv is checked here against a reference that is slow and
   saturated bins);
 - the compiled relative heights against :func:`relative_heights_reference`, the RH of
   record (:func:`lidarinv.observe.metrics.rh_metrics`) row by row;
-- the expected waveform against :func:`tests.reference_model.reference_waveform`, the
+- the waveform engines against :func:`.reference_model.reference_waveform`, the
   brute-force column model (re-exported here).
 
+:mod:`.fake_inversion` is a stand-in inversion for the batch machinery (picklable, with
+scripted failures and delays).
+
 :func:`assert_fast_path` is the single check: it runs both on copies of the arguments and
-compares what they return and what they change in place (accumulators). Like celerite2's
-``testing.py``, this module is for the tests only; nothing installed imports it.
+compares what they return and what they change in place (accumulators).
 """
 
 import copy
@@ -25,9 +29,20 @@ import numpy as np
 from scipy.special import log_ndtr
 
 from lidarinv.observe.metrics import rh_metrics
-from tests.reference_model import reference_waveform  # noqa: F401  (re-exported)
 
-_LOG_2PI = np.log(2.0 * np.pi)
+from .reference_model import reference_waveform
+
+__all__ = [
+    "assert_backends_agree",
+    "assert_fast_path",
+    "dense_log_likelihood",
+    "log_likelihood",
+    "reference_waveform",
+    "relative_heights_reference",
+    "row_log_likelihood_reference",
+]
+
+LOG_2PI = np.log(2.0 * np.pi)
 
 
 def _compare(fast, reference, rtol, atol, where):
@@ -105,7 +120,7 @@ def log_likelihood(data, mean, variance) -> np.ndarray:
     exact = data.exact
     if exact.any():
         r = (data.samples[exact] - mean[:, exact]) / sd[:, exact]
-        total -= 0.5 * np.sum(r * r + _LOG_2PI, axis=1) + np.sum(np.log(sd[:, exact]), axis=1)
+        total -= 0.5 * np.sum(r * r + LOG_2PI, axis=1) + np.sum(np.log(sd[:, exact]), axis=1)
     if data.censored.any():
         c = data.censored
         total += np.sum(log_ndtr((data.floor - mean[:, c]) / sd[:, c]), axis=1)
