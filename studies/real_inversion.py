@@ -53,7 +53,7 @@ WIDENING_M = 1.0
 
 
 def _files(data: str) -> dict:
-    from real_products import _files as product_files
+    from real_products import data_files as product_files
 
     return product_files(data)
 

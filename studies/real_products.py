@@ -46,7 +46,7 @@ QUANTITIES = ("ground", "rh50", "rh98", "rh100", "cover")
 GROUND_WARNINGS = ("ground ambiguous", TERRAIN_FLAG)
 
 
-def _files(data: str):
+def data_files(data: str):
     if data == "examples":
         names = ("gedi-l1b", "gedi-l2a", "gedi-l2b", "lvis-l1b", "lvis-l2")
         return {name: example_file(name) for name in names}
@@ -389,7 +389,7 @@ def main(argv=None):
     parser = harness.parser(__doc__)
     parser.add_argument("--data", default=str(DEFAULT_DATA), help="folder, or 'examples'")
     args = parser.parse_args(argv)
-    files = _files(args.data)
+    files = data_files(args.data)
     out = harness.output_folder("real_products", args.tag)
     gedi, gedi_rows, gedi_records = gedi_study(files)
     lvis, lvis_rows, lvis_records = lvis_study(files)

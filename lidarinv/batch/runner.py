@@ -106,7 +106,7 @@ def _root_entropy(rng, store: ResultStore) -> int:
     return entropy
 
 
-def _default_invert():
+def default_invert():
     try:
         from lidarinv.inference import invert_shot
     except ImportError as error:
@@ -273,7 +273,7 @@ def invert_many(
         raise ValueError(f"retries must be ≥ 0, got {retries}")
     if max_shots is not None and max_shots < 0:
         raise ValueError(f"max_shots must be ≥ 0, got {max_shots}")
-    invert = _default_invert() if invert is None else invert
+    invert = default_invert() if invert is None else invert
     if total is None and hasattr(observations, "__len__"):
         total = len(observations)
     start = time.perf_counter()

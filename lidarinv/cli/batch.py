@@ -66,10 +66,10 @@ def _settings(args):
 
 def _invert_function(spec):
     if spec is None:
-        from lidarinv.batch.runner import _default_invert
+        from lidarinv.batch.runner import default_invert
 
         try:
-            return _default_invert()
+            return default_invert()
         except ImportError as error:
             raise ValueError(str(error)) from error
     module_name, _, name = spec.partition(":")

@@ -113,7 +113,8 @@ def headline(result) -> str:
 
 
 def figure_names(shot_id) -> list:
-    """The files ``--plots`` writes for a shot (:func:`lidarinv.inference.results.plots.save_plots`)."""
+    """The files ``--plots`` writes for a shot
+    (:func:`lidarinv.inference.results.plots.save_plots`)."""
     from lidarinv.inference.results.plots import PLOTS
 
     return [f"shot_{shot_id}_{name}.png" for name in PLOTS]

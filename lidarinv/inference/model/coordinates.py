@@ -62,7 +62,7 @@ from .cover_pai import (  # noqa: F401  (re-exported: the cover–PAI maps are c
     to_cover_pai,
     to_cover_pai_bounded,
 )
-from .prior_table import LOGIT, _unit_and_log_slope
+from .prior_table import LOGIT, unit_and_log_slope
 
 #: Ridge-straightening coordinates by name (see :class:`.space.ParameterSpace`).
 RIDGE_COORDINATES = ("cover-pai", "crown-base", "ground-centroid", "tallest-stem")
@@ -329,7 +329,7 @@ def _crown_and_ground(u, x, log_jac, base, centroid, columns, fixed, top_sds, sl
             mean = top - top_sds * _value(x, r, columns[1], fixed[1])
             mean = mean if mean > 0.0 else math.nan
             z = u[r, c] - math.log(width * mean)
-            rest, log_slope = _unit_and_log_slope(-z, LOGIT)  # 1 − t, ln t(1 − t)
+            rest, log_slope = unit_and_log_slope(-z, LOGIT)  # 1 − t, ln t(1 − t)
             x[r, c] = min(base[1] + width * rest, base[2])
             log_jac[r, c] = math.log(width) + log_slope
         if g >= 0:

@@ -29,7 +29,7 @@ from forward.backends import jit
 from forward.instrument import DEFAULT_EXTINCTION_PER_FAVD
 from forward.poisson_stand import cover_from_crown_count, crown_count
 
-from .prior_table import LOGIT, _unit_and_log_slope
+from .prior_table import LOGIT, unit_and_log_slope
 
 #: a in 1 − exp(−a·Lc) where no instrument is given: k·G·Ω of the default
 #: :class:`forward.instrument.Instrument` (a complete hot spot, spherical leaf angles, no
@@ -233,7 +233,7 @@ def _cover_pai(u, x, log_jac, c, a, bounds, slope, w_high, w_low):
             x[r, c] = x[r, a] = log_jac[r, c] = math.nan
             log_jac[r, a] = 0.0
             continue
-        unit, log_slope = _unit_and_log_slope(v, LOGIT)
+        unit, log_slope = unit_and_log_slope(v, LOGIT)
         t = low + (high - low) * unit
         lc = math.exp(t)
         crowns = y / -math.expm1(-slope * lc)  # X = −ln(1 − cover)

@@ -82,7 +82,7 @@ _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
 @jit
-def _unit_and_log_slope(t, kind):
+def unit_and_log_slope(t, kind):
     """f(t) ∈ [0, 1] and log f′(t) of the logistic (``LOGIT``) or normal (``PROBIT``) CDF,
     without overflow either side."""
     if kind == PROBIT:
@@ -101,7 +101,7 @@ def _prior_from_unbounded(u, w_lower, span, log_scale, lower, upper, kind):
     log_jac = np.empty((n, k))
     for r in range(n):
         for c in range(k):
-            unit, log_slope = _unit_and_log_slope(u[r, c], kind)
+            unit, log_slope = unit_and_log_slope(u[r, c], kind)
             w = w_lower[c] + span[c] * unit
             jac = math.log(span[c]) + log_slope
             value = w
