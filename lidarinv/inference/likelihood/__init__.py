@@ -8,8 +8,9 @@ discrepancy per bin (:mod:`.discrepancy`) or a covariance between bins
 
 from .gaussian import ShotLikelihood
 from .protocol import Likelihood
+from .white_noise import WhiteNoiseLikelihood
 
 #: The likelihoods an inversion can use, by name.
-LIKELIHOODS = {"gaussian": ShotLikelihood}
+LIKELIHOODS = {"gaussian": ShotLikelihood, "white-noise": WhiteNoiseLikelihood}
 
 __all__ = ["LIKELIHOODS", "Likelihood", "ShotLikelihood"]
