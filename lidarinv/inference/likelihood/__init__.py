@@ -8,9 +8,8 @@ discrepancy per bin (:mod:`.discrepancy`) or a covariance between bins
 
 from .gaussian import ShotLikelihood
 from .protocol import Likelihood
-from .white_noise import WhiteNoiseLikelihood
 
 #: The likelihoods an inversion can use, by name.
-LIKELIHOODS = {"gaussian": ShotLikelihood, "white-noise": WhiteNoiseLikelihood}
+LIKELIHOODS = {"gaussian": ShotLikelihood}
 
 __all__ = ["LIKELIHOODS", "Likelihood", "ShotLikelihood"]
