@@ -62,6 +62,14 @@ def invert_shot(
     ValueError
         If the shot has no usable signal or ground peak.
 
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (the waveform model the expected stand
+    extends).
+    Foreman-Mackey, D., Hogg, D. W., Lang, D. & Goodman, J. (2013). emcee: the MCMC hammer.
+    *PASP* 125(925), 306–312.
+
     Examples
     --------
     A synthetic GEDI shot of a stand whose tallest trees reach 22 m, inverted with

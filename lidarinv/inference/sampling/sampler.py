@@ -248,6 +248,15 @@ def run_sampler(
     ----------
     Foreman-Mackey, D., Hogg, D. W., Lang, D. & Goodman, J. (2013). emcee: the MCMC
     hammer. *PASP* 125, 306–312.
+    Goodman, J. & Weare, J. (2010). Ensemble samplers with affine invariance. *Commun.
+    Appl. Math. Comput. Sci.* 5(1), 65–80 (the integrated autocorrelation time of an
+    ensemble).
+    Sokal, A. (1997). Monte Carlo methods in statistical mechanics: foundations and new
+    algorithms. In C. DeWitt-Morette, P. Cartier & A. Folacci (eds), *Functional
+    Integration: Basics and Applications*, NATO ASI Series B 361, Springer, 131–192.
+    emcee documentation, "Autocorrelation analysis & convergence",
+    https://emcee.readthedocs.io/en/stable/tutorials/autocorr/ (the run's length as a
+    multiple of τ, checked as the chain grows).
     """
     s = SamplerSettings() if settings is None else settings
     ndim = space.ndim
