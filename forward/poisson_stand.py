@@ -245,6 +245,12 @@ def tallest_above(stems, survival):
     -----
     The stems taller than h are Poisson with mean N·S(h); H ≤ h where there are none.
     Its mean is E[H] = ∫_0^∞ P(H > h) dh (the tallest of no stems counted as 0).
+
+    References
+    ----------
+    Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and its
+    Applications*, 3rd ed., Wiley, Ch. 2 (the Poisson point process: the probability of no
+    stem above h).
     """
     return -np.expm1(-stems * survival)
 
@@ -263,6 +269,12 @@ def tallest_log_density(stems, pdf, survival):
     -------
     float or array
         d/dh P(H ≤ h) = N·f(h)·exp(−N·S(h)), on the log scale (−inf where f = 0).
+
+    References
+    ----------
+    Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and its
+    Applications*, 3rd ed., Wiley, Ch. 2 (the Poisson point process: the probability of no
+    stem above h).
     """
     return np.log(stems * pdf) - stems * survival
 

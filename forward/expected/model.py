@@ -308,6 +308,14 @@ class ExpectedWaveformModel:
         array (n, len(z))
             exp(−λ·E[∫(1 − e^{−κuℓ}) dA]) of the trees, times the uniform understory's
             transmission.
+
+        References
+        ----------
+        Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+        Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II, Eqs. (1)–(3): the
+        bidirectional gap probability).
+        Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and
+        its Applications*, 3rd ed., Wiley, Sec. 3.1 (the Boolean model of the crowns).
         """
         full = self._full(theta)
         z = np.broadcast_to(np.asarray(z, float), (full.shape[0], np.size(z)))

@@ -158,6 +158,13 @@ def burn_in(n_steps, tau, burn_taus, floor=0) -> int:
     int
         ``burn_taus`` times the largest finite τ, at most a third of the chain (a third
         while τ is unknown), and never fewer than ``floor``.
+
+    References
+    ----------
+    Sokal, A. (1997). Monte Carlo methods in statistical mechanics: foundations and new
+    algorithms. In C. DeWitt-Morette, P. Cartier & A. Folacci (eds), *Functional
+    Integration: Basics and Applications*, NATO ASI Series B 361, Springer, 131–192 (the
+    initial transient, discarded in units of the autocorrelation time).
     """
     third = n_steps // 3
     if not np.all(np.isfinite(tau)):
@@ -255,8 +262,8 @@ def run_sampler(
     algorithms. In C. DeWitt-Morette, P. Cartier & A. Folacci (eds), *Functional
     Integration: Basics and Applications*, NATO ASI Series B 361, Springer, 131–192.
     emcee documentation, "Autocorrelation analysis & convergence",
-    https://emcee.readthedocs.io/en/stable/tutorials/autocorr/ (the run's length as a
-    multiple of τ, checked as the chain grows).
+    https://emcee.readthedocs.io/en/stable/tutorials/autocorr/ (τ's estimate and the
+    chain's length as a multiple of it).
     """
     s = SamplerSettings() if settings is None else settings
     ndim = space.ndim
