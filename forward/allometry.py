@@ -34,6 +34,14 @@ class Allometry:
         ``c`` (dimensionless).
     crown_length_intercept, crown_length_slope : float (m, m/m)
     crown_radius_intercept, crown_radius_slope : float (m, m/m)
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Table II: height from DBH, crown length
+    and width from height).
+    Richards, F. J. (1959). A flexible growth function for empirical use. *J. Exp. Bot.*
+    10(2), 290–300 (the height curve's form).
     """
 
     height_asymptote: float

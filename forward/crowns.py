@@ -29,6 +29,12 @@ class CrownShape:
         [0, 1], as a fraction of pi·Rc².
     volume_fraction : float
         Crown volume over pi·Rc²·Lc.
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. V: crowns as cones, ellipsoids and
+    hemi-ellipsoids of uniform foliage).
     """
 
     name: str
@@ -165,6 +171,11 @@ def crown_radius(height, intercept, slope):
     -------
     float or array (m)
         Rc = r0 + r1·h.
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Table II: crown width from tree height).
     """
     return intercept + slope * height
 

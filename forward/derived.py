@@ -64,6 +64,11 @@ def canopy_cover(params) -> float:
     -------
     float
         c = 1 − exp(−λ·E[π Rc²]) (:func:`forward.poisson_stand.cover_from_density`).
+
+    References
+    ----------
+    Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and its
+    Applications*, 3rd ed., Wiley, Sec. 3.1 (the coverage of a Boolean model).
     """
     area = _expect(
         params,
@@ -188,6 +193,12 @@ def expected_max_height(params, footprint_diameter_m) -> float:
     float (m)
         E[max] = ∫_0^∞ (1 − exp(−λA·S(h))) dh, A = πD²/4, the tallest of no trees counted
         as 0 (:func:`forward.poisson_stand.tallest_above`).
+
+    References
+    ----------
+    Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and its
+    Applications*, 3rd ed., Wiley, Ch. 2 (the Poisson point process: the probability of no
+    stem above h).
     """
     area = np.pi * footprint_diameter_m**2 / 4.0
     h = np.linspace(0.0, _height_grid(params)[-1], _GRID)

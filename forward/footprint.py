@@ -42,6 +42,15 @@ def gaussian_footprint_weight(squared_distance, sigma):
     float or array (1/m²)
         w(r) = exp(−r²/2σf²)/(2πσf²), of unit integral over the plane (physics
         conventions, "Footprint").
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II-B: the Gaussian intensity across
+    the footprint).
+    Blair, J. B. & Hofton, M. A. (1999). Modeling laser altimeter return waveforms over
+    complex vegetation using high-resolution elevation data. *Geophys. Res. Lett.* 26(16),
+    2509–2512.
     """
     s2 = sigma * sigma
     return footprint_falloff(squared_distance / s2) / (2.0 * np.pi * s2)

@@ -31,6 +31,14 @@ class Instrument:
         turbid-medium attenuation.
     name : str
         Label stored with outputs.
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II, Eqs. (1)–(3): the bidirectional
+    gap probability with the hot-spot factor).
+    Kuusk, A. (1991). The hot spot effect in plant canopy reflectance. In R. Myneni & J.
+    Ross (eds), *Photon–Vegetation Interactions*, Springer, 139–159.
     """
 
     pulse: object

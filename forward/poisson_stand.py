@@ -44,6 +44,11 @@ def crown_count(cover):
     Notes
     -----
     The crowns over a point are Poisson with mean X, so c = 1 − P(none) = 1 − e^{−X}.
+
+    References
+    ----------
+    Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and its
+    Applications*, 3rd ed., Wiley, Sec. 3.1 (the coverage of a Boolean model).
     """
     return -np.log1p(-cover)
 
@@ -79,6 +84,14 @@ def cover_from_density(density, crown_area):
     float or array
         Cover c: :func:`cover_from_crown_count` of X = λ·E[π R²] (written out, so that
         compiled kernels can call it).
+
+    References
+    ----------
+    Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and its
+    Applications*, 3rd ed., Wiley, Sec. 3.1 (the coverage of a Boolean model).
+    Strahler, A. H. & Jupp, D. L. B. (1990). Modeling bidirectional reflectance of forests
+    and woodlands using Boolean models and geometric optics. *Remote Sens. Environ.* 34,
+    153–166.
     """
     return -np.expm1(-(density * crown_area))
 
@@ -99,6 +112,11 @@ def density_from_cover(cover, crown_area):
     float or array (stems/m²)
         :func:`crown_count` over E[π R²] (written out, so that compiled kernels can call
         it).
+
+    References
+    ----------
+    Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and its
+    Applications*, 3rd ed., Wiley, Sec. 3.1 (the coverage of a Boolean model).
     """
     return -np.log1p(-cover) / crown_area
 
@@ -227,6 +245,12 @@ def tallest_above(stems, survival):
     -----
     The stems taller than h are Poisson with mean N·S(h); H ≤ h where there are none.
     Its mean is E[H] = ∫_0^∞ P(H > h) dh (the tallest of no stems counted as 0).
+
+    References
+    ----------
+    Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and its
+    Applications*, 3rd ed., Wiley, Ch. 2 (the Poisson point process: the probability of no
+    stem above h).
     """
     return -np.expm1(-stems * survival)
 
@@ -245,6 +269,12 @@ def tallest_log_density(stems, pdf, survival):
     -------
     float or array
         d/dh P(H ≤ h) = N·f(h)·exp(−N·S(h)), on the log scale (−inf where f = 0).
+
+    References
+    ----------
+    Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and its
+    Applications*, 3rd ed., Wiley, Ch. 2 (the Poisson point process: the probability of no
+    stem above h).
     """
     return np.log(stems * pdf) - stems * survival
 

@@ -18,7 +18,14 @@ from .constants import FWHM_PER_SIGMA, ns_to_height
 
 @dataclass(frozen=True)
 class GaussianPulse:
-    """Gaussian pulse of half-power duration ``fwhm_ns`` (ns); σz = τp·c/2/2.35482 (m)."""
+    """Gaussian pulse of half-power duration ``fwhm_ns`` (ns); σz = τp·c/2/2.35482 (m).
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II and Fig. 1: the Gaussian pulse,
+    and a flat ground's Gaussian-shaped return peaking at the ground's height).
+    """
 
     fwhm_ns: float
 
@@ -246,6 +253,12 @@ def point_returns(pulse, heights, centres, weights, support, *, bin_height=None,
     A flat surface at height z_g returns w·Δz·p(z_j − z_g) in bin j (physics conventions,
     "Pulse and digitiser"): the pulse p of unit area, point-sampled at the bin centre
     z_j, times the bin height Δz. The ground of both waveform models is this pulse.
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II and Fig. 1: each scatterer
+    returns the pulse, registered at the pulse's peak).
     """
     centres = np.asarray(centres, float)
     out = np.zeros((centres.size, np.size(heights)))
@@ -322,6 +335,12 @@ def layer_kernel(pulse, bin_height, oversampling, tolerance):
     the sample is Δz/h · [C(d + h/2) − C(d − h/2)] with d = (q + (m − 1)/2)·h and C the
     pulse CDF: the exact convolution of a uniform layer with the pulse, point-sampled at
     the bin centre and multiplied by Δz.
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II-B: the returns of thin layers
+    added to the digitiser bins by their delay).
     """
     m = int(oversampling)
     h = bin_height / m

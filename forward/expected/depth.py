@@ -173,6 +173,15 @@ def tree_depth(cohorts, points, crowns, z, *, backend="auto", tables=(None, None
     array (n, e)
         The sum of :func:`add_cohort_depth` over ``cohorts`` and :func:`add_point_depth`
         of ``points``.
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (the crowns' optical depth along a
+    column).
+    Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and its
+    Applications*, 3rd ed., Wiley, Sec. 3.1 (the Boolean model: the expected gap as the
+    exponential of the mean depth).
     """
     tails, a_groups, b_groups = tables
     depth = np.zeros_like(z)

@@ -47,6 +47,12 @@ def ground_return(
     -----
     ground_j = ρg·E[P(0)]·Δz·p(z_j − z_g) and canopy_j = ρv·C_j (physics conventions,
     "Radiative transfer"; :func:`forward.pulse.point_returns`).
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II: the ground's pulse-shaped
+    return, scaled by the gap at the ground).
     """
     ground = point_returns(
         pulse, heights, ground_elevation, rho_g * gap0, support, bin_height=dz, backend=backend

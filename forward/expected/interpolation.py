@@ -35,6 +35,11 @@ def catmull_rom(values, z, step, beyond=0.0):
     -------
     array (n, e)
         Below the first node the values are extrapolated linearly.
+
+    References
+    ----------
+    Catmull, E. & Rom, R. (1974). A class of local interpolating splines. In R. E. Barnhill
+    & R. F. Riesenfeld (eds), *Computer Aided Geometric Design*, Academic Press, 317–326.
     """
     n, m = values.shape
     y = np.full((n, m + 3), float(beyond))

@@ -47,6 +47,33 @@ class ExpectedWaveformModel:
     free : tuple of str
         Names from :data:`VECTOR_FIELDS` forming the parameter vector, in order.
     settings : ModelSettings
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (the waveform as layer returns through
+    the gap probability, and the ground's return through the gap at the ground).
+
+    Examples
+    --------
+    The expected GEDI waveform of the generic conifer stand: its samples hold the canopy
+    return ρv·(1 − E[P(0)]) and the ground return ρg·E[P(0)]:
+
+    >>> import numpy as np
+    >>> from forward.examples import example_stand
+    >>> from forward.expected import ExpectedWaveformModel
+    >>> from forward.instrument import instrument_preset
+    >>> gedi = instrument_preset("gedi")
+    >>> stand = example_stand()
+    >>> heights = np.arange(-10.0, 35.0, gedi.bin_height)
+    >>> model = ExpectedWaveformModel(gedi, heights, stand)
+    >>> out = model.evaluate(model.vector(stand)[None, :])
+    >>> out.samples.shape == (1, heights.size)
+    True
+    >>> gap = out.gap_ground[0]
+    >>> energy = stand.canopy_reflectance * (1 - gap) + stand.ground_reflectance * gap
+    >>> bool(np.isclose(out.samples.sum(), energy, rtol=1e-3))
+    True
     """
 
     def __init__(
@@ -281,6 +308,14 @@ class ExpectedWaveformModel:
         array (n, len(z))
             exp(−λ·E[∫(1 − e^{−κuℓ}) dA]) of the trees, times the uniform understory's
             transmission.
+
+        References
+        ----------
+        Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+        Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II, Eqs. (1)–(3): the
+        bidirectional gap probability).
+        Chiu, S. N., Stoyan, D., Kendall, W. S. & Mecke, J. (2013). *Stochastic Geometry and
+        its Applications*, 3rd ed., Wiley, Sec. 3.1 (the Boolean model of the crowns).
         """
         full = self._full(theta)
         z = np.broadcast_to(np.asarray(z, float), (full.shape[0], np.size(z)))

@@ -64,6 +64,12 @@ def footprint_profiles(
     Returns
     -------
     FootprintSums
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II-B: the footprint's columns,
+    weighted by the Gaussian beam).
     """
     if resolve(backend) == "numba":
         return column_kernel_numba.footprint_profiles(
@@ -180,6 +186,12 @@ def ground_gap(
     ground_mass : array or None
         Sloped ground: Σ ω·P(ground) of the columns whose ground lies at each node
         (linear deposit between nodes); None on flat ground.
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II-B: the ground's return through
+    the gap at the ground).
     """
     if resolve(backend) == "numba":
         return column_kernel_numba.ground_gap(grid, crowns, slope, ground_nodes, h)

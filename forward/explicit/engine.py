@@ -191,6 +191,35 @@ class WaveformSimulator:
         canopy_reflectance : float
             ρv.
         understory : UniformUnderstory, optional
+
+        Returns
+        -------
+        Waveform
+
+        References
+        ----------
+        Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+        Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (the waveform of a stem map: gap
+        probability through the crowns, layer returns and the ground, convolved with the
+        pulse).
+
+        Examples
+        --------
+        One GEDI footprint at the centre of a 60 m plot of the generic conifer stand; the
+        samples hold the whole return, ρv·(1 − P̄(0)) + ρg·P̄(0):
+
+        >>> import numpy as np
+        >>> from forward.examples import example_stand
+        >>> from forward.explicit import WaveformSimulator
+        >>> from forward.instrument import instrument_preset
+        >>> from forward.realise import realise
+        >>> stand = realise(example_stand(), 60.0, np.random.default_rng(1))
+        >>> simulator = WaveformSimulator(instrument_preset("gedi"))
+        >>> waveform = simulator.simulate(stand, center=(30.0, 30.0))
+        >>> bool(np.isclose(waveform.samples.sum(), waveform.total_energy, rtol=1e-3))
+        True
+        >>> bool(0.0 < waveform.ground_gap < 1.0)
+        True
         """
         prepared = stand if isinstance(stand, PreparedStand) else self.prepare(stand)
         ground = Ground() if ground is None else ground

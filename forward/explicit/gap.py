@@ -133,6 +133,14 @@ def column_profiles(column, z_low, z_high, extinction, density, grid, weights, k
     crown top: above them P = 1, below them nothing more is intercepted. So the work is
     the number of crowned columns times the height span of their own crowns (not of the
     whole canopy), and memory stays bounded by :data:`BLOCK_ELEMENTS` per block.
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II: the bidirectional gap
+    probability of each column through the crowns above it, under the lidar's hot spot).
+    Kuusk, A. (1991). The hot spot effect in plant canopy reflectance. In R. Myneni & J.
+    Ross (eds), *Photon–Vegetation Interactions*, Springer, 139–159.
     """
     h = grid.thickness
     crowned, row = np.unique(column, return_inverse=True)

@@ -39,6 +39,12 @@ def render_waveform(
     center : (float, float) (m)
     settings : dict
         Scheme settings recorded with the waveform.
+
+    References
+    ----------
+    Sun, G. & Ranson, K. J. (2000). Modeling lidar returns from forest canopies. *IEEE
+    Trans. Geosci. Remote Sens.* 38(6), 2617–2626 (Sec. II-B: layer returns and the ground's
+    return, convolved with the pulse).
     """
     grid, first = layers
     n, m = heights.size, sim.oversampling

@@ -79,6 +79,16 @@ def find_modes(smoothed, noise_mean: float, *, floor: float, prominence: float, 
         Smallest prominence (digitiser units).
     within : (int, int), optional
         First and last bin a mode may lie at (e.g. the signal extent's).
+
+    References
+    ----------
+    Hofton, M. & Blair, J. B. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI
+    Transmit and Receive Waveform Processing for L1 and L2 Products*, version 1.0. NASA
+    Goddard Space Flight Center, Greenbelt, MD (modes as zero crossings of the smoothed
+    waveform's first derivative).
+    Hofton, M. A., Minster, J. B. & Blair, J. B. (2000). Decomposition of laser altimeter
+    waveforms. *IEEE Trans. Geosci. Remote Sens.* 38(4), 1989–1996 (components of a smoothed
+    waveform).
     """
     values = np.asarray(smoothed, float)
     peaks, props = find_peaks(values, height=floor, prominence=prominence)
@@ -135,6 +145,18 @@ def find_ground(
     -------
     GroundPeak or None
         ``None`` when no mode qualifies.
+
+    References
+    ----------
+    Hofton, M. & Blair, J. B. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI
+    Transmit and Receive Waveform Processing for L1 and L2 Products*, version 1.0. NASA
+    Goddard Space Flight Center, Greenbelt, MD (the ground as the lowest mode).
+    Hofton, M. A., Minster, J. B. & Blair, J. B. (2000). Decomposition of laser altimeter
+    waveforms. *IEEE Trans. Geosci. Remote Sens.* 38(4), 1989–1996 (the ground as the lowest
+    component of a decomposition).
+    Blair, J. B., Rabine, D. L. & Hofton, M. A. (1999). The Laser Vegetation Imaging Sensor:
+    a medium-altitude, digitisation-only, airborne laser altimeter for mapping vegetation
+    and topography. *ISPRS J. Photogramm. Remote Sens.* 54(2–3), 115–122.
     """
     values = np.asarray(smoothed, float)
     axis = np.asarray(axis, float)

@@ -76,7 +76,13 @@ class GroundCandidate:
 
 def significance_sigmas(n_trials: float, false_alarm: float = FALSE_ALARM) -> float:
     """One-sided Gaussian level z with P(any of ``n_trials`` exceeds z) ≈ ``false_alarm``:
-    z = Φ⁻¹(1 − false_alarm / n_trials)."""
+    z = Φ⁻¹(1 − false_alarm / n_trials).
+
+    References
+    ----------
+    Dunn, O. J. (1961). Multiple comparisons among means. *J. Am. Statist. Assoc.* 56(293),
+    52–64 (the Bonferroni bound on a family's false-alarm rate).
+    """
     return float(norm.isf(false_alarm / max(float(n_trials), 1.0)))
 
 
@@ -191,6 +197,18 @@ def ground_candidates(
     level, plausible_level : float
         Significance levels (σ) of the search at ``FALSE_ALARM`` and at
         ``PLAUSIBLE_FALSE_ALARM``.
+
+    References
+    ----------
+    Hofton, M. A., Minster, J. B. & Blair, J. B. (2000). Decomposition of laser altimeter
+    waveforms. *IEEE Trans. Geosci. Remote Sens.* 38(4), 1989–1996 (the lowest Gaussian
+    component, shoulders included, as LVIS L2's ground).
+    Blair, J. B., Rabine, D. L. & Hofton, M. A. (1999). The Laser Vegetation Imaging Sensor:
+    a medium-altitude, digitisation-only, airborne laser altimeter for mapping vegetation
+    and topography. *ISPRS J. Photogramm. Remote Sens.* 54(2–3), 115–122.
+    Hofton, M. & Blair, J. B. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI
+    Transmit and Receive Waveform Processing for L1 and L2 Products*, version 1.0. NASA
+    Goddard Space Flight Center, Greenbelt, MD (GEDI L2A's lowest mode).
     """
     samples = np.asarray(samples, float)
     smoothed = np.asarray(smoothed, float)

@@ -66,6 +66,16 @@ def rh_metrics(
     -------
     array (m)
         RH for each percentile (RH0 may be negative: energy below the ground peak).
+
+    References
+    ----------
+    Hofton, M. & Blair, J. B. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI
+    Transmit and Receive Waveform Processing for L1 and L2 Products*, version 1.0. NASA
+    Goddard Space Flight Center, Greenbelt, MD (relative heights RH0–RH100 above the
+    ground).
+    Blair, J. B., Rabine, D. L. & Hofton, M. A. (1999). The Laser Vegetation Imaging Sensor:
+    a medium-altitude, digitisation-only, airborne laser altimeter for mapping vegetation
+    and topography. *ISPRS J. Photogramm. Remote Sens.* 54(2–3), 115–122.
     """
     percentiles = np.asarray(percentiles, float)
     if np.any((percentiles < 0) | (percentiles > 100)):
@@ -99,6 +109,14 @@ class GapProfile:
         Plant area volume density of each layer between consecutive ``height`` values.
     canopy_energy, ground_energy : float
         Rv and Rg (digitiser units × bins).
+
+    References
+    ----------
+    Tang, H. & Armston, J. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI L2B
+    Footprint Canopy Cover and Vertical Profile Metrics*, version 1.0. NASA Goddard Space
+    Flight Center, Greenbelt, MD (cover, PAI and PAVD from the directional gap probability).
+    MacArthur, R. H. & Horn, H. S. (1969). Foliage profile by vertical measurements.
+    *Ecology* 50(5), 802–804.
     """
 
     cover: float
@@ -158,6 +176,21 @@ def gap_profile(
         as recorded; :func:`lidarinv.observe.instrument.ground_return_cdf`): the ground
         energy is then the energy below the peak over ``ground_cdf(0)``. Default: a
         symmetric return, mirrored about its peak.
+
+    References
+    ----------
+    Tang, H. & Armston, J. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI L2B
+    Footprint Canopy Cover and Vertical Profile Metrics*, version 1.0. NASA Goddard Space
+    Flight Center, Greenbelt, MD (the gap probability from the canopy and ground returns
+    with ρv/ρg = 1.5, and PAVD).
+    Armston, J., Disney, M., Lewis, P., Scarth, P., Phinn, S., Lucas, R., Bunting, P. &
+    Goodwin, N. (2013). Direct retrieval of canopy gap probability using airborne waveform
+    lidar. *Remote Sens. Environ.* 134, 24–38.
+    Ni-Meister, W., Jupp, D. L. B. & Dubayah, R. (2001). Modeling lidar waveforms in
+    heterogeneous and discrete canopies. *IEEE Trans. Geosci. Remote Sens.* 39(9),
+    1943–1958.
+    MacArthur, R. H. & Horn, H. S. (1969). Foliage profile by vertical measurements.
+    *Ecology* 50(5), 802–804.
     """
     if not (rho_ratio > 0 and extinction > 0):
         raise ValueError("rho_ratio and extinction must be positive")

@@ -90,6 +90,22 @@ class ProcessingSettings:
         Quality shots have a sensitivity (largest detectable cover) at least this.
     pavd_layer_m : float (m)
         Thickness of the PAVD layers reported.
+
+    References
+    ----------
+    Hofton, M. & Blair, J. B. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI
+    Transmit and Receive Waveform Processing for L1 and L2 Products*, version 1.0. NASA
+    Goddard Space Flight Center, Greenbelt, MD (GEDI L2A's smoothing, thresholds and lowest-
+    mode ground).
+    Blair, J. B., Rabine, D. L. & Hofton, M. A. (1999). The Laser Vegetation Imaging Sensor:
+    a medium-altitude, digitisation-only, airborne laser altimeter for mapping vegetation
+    and topography. *ISPRS J. Photogramm. Remote Sens.* 54(2–3), 115–122.
+    Hofton, M. A., Minster, J. B. & Blair, J. B. (2000). Decomposition of laser altimeter
+    waveforms. *IEEE Trans. Geosci. Remote Sens.* 38(4), 1989–1996 (LVIS L2's ground as the
+    lowest Gaussian component).
+    Tang, H. & Armston, J. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI L2B
+    Footprint Canopy Cover and Vertical Profile Metrics*, version 1.0. NASA Goddard Space
+    Flight Center, Greenbelt, MD (ρv/ρg of GEDI L2B's cover).
     """
 
     smoothing_pulse_widths: float = 1.0

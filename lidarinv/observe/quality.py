@@ -35,6 +35,13 @@ def sensitivity(smallest_ground_energy: float, total_energy: float, rho_ratio: f
         Energy of the shot's return (same units).
     rho_ratio : float
         ρv/ρg.
+
+    References
+    ----------
+    Hofton, M. & Blair, J. B. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI
+    Transmit and Receive Waveform Processing for L1 and L2 Products*, version 1.0. NASA
+    Goddard Space Flight Center, Greenbelt, MD (the beam sensitivity: the largest cover
+    under which the ground would still be detected).
     """
     if not (total_energy > 0 and smallest_ground_energy >= 0):
         return float("nan")

@@ -46,6 +46,13 @@ def smooth(samples, sigma_bins: float | None):
 
     The window is extended by reflection; samples within :func:`edge_bins` of an edge
     still feel that extension and are left out of detection by the callers.
+
+    References
+    ----------
+    Hofton, M. & Blair, J. B. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI
+    Transmit and Receive Waveform Processing for L1 and L2 Products*, version 1.0. NASA
+    Goddard Space Flight Center, Greenbelt, MD (the waveform smoothed by a Gaussian before
+    its signal and modes are sought).
     """
     samples = np.asarray(samples, float)
     if not sigma_bins:
@@ -110,6 +117,16 @@ def signal_extent(
         the front floor reaches them, touches the edge. Default ``start_floor``.
     censored : array of bool, optional
         Samples set to a product's floor; they never count as signal.
+
+    References
+    ----------
+    Hofton, M. & Blair, J. B. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI
+    Transmit and Receive Waveform Processing for L1 and L2 Products*, version 1.0. NASA
+    Goddard Space Flight Center, Greenbelt, MD (signal start and end above front and back
+    noise thresholds).
+    Blair, J. B., Rabine, D. L. & Hofton, M. A. (1999). The Laser Vegetation Imaging Sensor:
+    a medium-altitude, digitisation-only, airborne laser altimeter for mapping vegetation
+    and topography. *ISPRS J. Photogramm. Remote Sens.* 54(2–3), 115–122.
     """
     values = np.asarray(smoothed, float).copy()
     axis = np.asarray(axis, float)

@@ -76,14 +76,28 @@ def local_metres(latitude, longitude):
 
 
 def robust_scale(residuals) -> float:
-    """1.4826 × the median absolute residual (σ for Gaussian residuals)."""
+    """1.4826 × the median absolute residual (σ for Gaussian residuals).
+
+    References
+    ----------
+    Hampel, F. R. (1974). The influence curve and its role in robust estimation. *J. Am.
+    Statist. Assoc.* 69(346), 383–393 (the scaled median absolute deviation).
+    """
     return float(1.4826 * np.median(np.abs(residuals)))
 
 
 def robust_plane(east, north, values, iterations: int = 10):
     """Coefficients (a, b, c) of values ≈ a + b·east + c·north by iteratively reweighted
     least squares with Tukey's biweight (minimum-norm where the points are collinear),
-    and the residuals."""
+    and the residuals.
+
+    References
+    ----------
+    Beaton, A. E. & Tukey, J. W. (1974). The fitting of power series, meaning polynomials,
+    illustrated on band-spectroscopic data. *Technometrics* 16(2), 147–185 (the biweight).
+    Holland, P. W. & Welsch, R. E. (1977). Robust regression using iteratively reweighted
+    least-squares. *Commun. Statist. Theory Methods* 6(9), 813–827.
+    """
     design = np.column_stack([np.ones_like(east), east, north])
     weights = np.ones_like(values)
     for _ in range(iterations):
@@ -102,7 +116,13 @@ def robust_plane(east, north, values, iterations: int = 10):
 
 def outlier_level(n_shots: int, false_alarm: float = FALSE_ALARM) -> float:
     """Two-sided Gaussian level z with P(any of ``n_shots`` |residual| > z·σ) ≈
-    ``false_alarm``."""
+    ``false_alarm``.
+
+    References
+    ----------
+    Dunn, O. J. (1961). Multiple comparisons among means. *J. Am. Statist. Assoc.* 56(293),
+    52–64 (the Bonferroni bound on a family's false-alarm rate).
+    """
     return float(norm.isf(0.5 * false_alarm / max(int(n_shots), 1)))
 
 

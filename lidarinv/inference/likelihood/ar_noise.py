@@ -38,6 +38,13 @@ MAX_ORDER = 8
 def levinson_durbin(autocorrelation, order: int):
     """AR coefficients φ_1…φ_p, partial autocorrelations and the innovation variance of
     a unit-variance process with autocorrelation R(0…p), by the Levinson–Durbin recursion.
+
+    References
+    ----------
+    Levinson, N. (1947). The Wiener (root mean square) error criterion in filter design and
+    prediction. *J. Math. Phys.* 25(1–4), 261–278.
+    Durbin, J. (1960). The fitting of time-series models. *Rev. Inst. Int. Statist.* 28(3),
+    233–244.
     """
     r = np.asarray(autocorrelation, float)
     phi = np.zeros(0)
@@ -55,7 +62,17 @@ def levinson_durbin(autocorrelation, order: int):
 
 def integrated_time(autocorrelation) -> float:
     """τ = 1 + 2·Σ_(k≥1) R(k), summed up to the first non-positive lag (the far lags of a
-    sample autocorrelation are noise)."""
+    sample autocorrelation are noise).
+
+    References
+    ----------
+    Sokal, A. (1997). Monte Carlo methods in statistical mechanics: foundations and new
+    algorithms. In C. DeWitt-Morette, P. Cartier & A. Folacci (eds), *Functional
+    Integration: Basics and Applications*, NATO ASI Series B 361, Springer, 131–192 (the
+    integrated autocorrelation time and its truncated sum).
+    Goodman, J. & Weare, J. (2010). Ensemble samplers with affine invariance. *Commun. Appl.
+    Math. Comput. Sci.* 5(1), 65–80.
+    """
     r = np.asarray(autocorrelation, float)
     stop = np.flatnonzero(r[1:] <= 0)
     head = r[1 : 1 + stop[0]] if stop.size else r[1:]
@@ -74,6 +91,18 @@ class AutoregressiveNoise:
         v = var(e_t) for var(x_t) = 1.
     head_autocorrelation : array
         R(0 … p) of the process (the fitted autocorrelation at those lags).
+
+    References
+    ----------
+    Yule, G. U. (1927). On a method of investigating periodicities in disturbed series, with
+    special reference to Wolfer's sunspot numbers. *Phil. Trans. R. Soc. Lond. A* 226,
+    267–298.
+    Walker, G. (1931). On periodicity in series of related terms. *Proc. R. Soc. Lond. A*
+    131(818), 518–532.
+    Levinson, N. (1947). The Wiener (root mean square) error criterion in filter design and
+    prediction. *J. Math. Phys.* 25(1–4), 261–278.
+    Durbin, J. (1960). The fitting of time-series models. *Rev. Inst. Int. Statist.* 28(3),
+    233–244.
     """
 
     coefficients: np.ndarray
@@ -89,7 +118,18 @@ class AutoregressiveNoise:
         cls, autocorrelation, n_samples: int, max_order: int = MAX_ORDER
     ) -> "AutoregressiveNoise":
         """Yule–Walker fit to a measured autocorrelation R(0, 1, …) from ``n_samples``
-        signal-free bins; the order is the last significant partial autocorrelation."""
+        signal-free bins; the order is the last significant partial autocorrelation.
+
+        References
+        ----------
+        Yule, G. U. (1927). On a method of investigating periodicities in disturbed series,
+        with special reference to Wolfer's sunspot numbers. *Phil. Trans. R. Soc. Lond. A*
+        226, 267–298.
+        Walker, G. (1931). On periodicity in series of related terms. *Proc. R. Soc. Lond.
+        A* 131(818), 518–532.
+        Durbin, J. (1960). The fitting of time-series models. *Rev. Inst. Int. Statist.*
+        28(3), 233–244 (the recursion and the partial autocorrelations).
+        """
         r = np.asarray(autocorrelation, float)
         if r.ndim != 1 or r.size == 0 or not np.all(np.isfinite(r)) or r[0] != 1.0:
             raise ValueError("an autocorrelation must be finite and start with R(0) = 1")

@@ -79,6 +79,13 @@ def discrepancy_given_data(like, signal, values, rng, back=None) -> np.ndarray:
     ------
     ValueError
         Where the likelihood has a :func:`conditioning_obstacle`.
+
+    References
+    ----------
+    Wiener, N. (1949). *Extrapolation, Interpolation, and Smoothing of Stationary Time
+    Series*. MIT Press.
+    Rasmussen, C. E. & Williams, C. K. I. (2006). *Gaussian Processes for Machine Learning*.
+    MIT Press, App. A.2 (conditional Gaussians).
     """
     obstacle = conditioning_obstacle(like)
     if obstacle is not None:

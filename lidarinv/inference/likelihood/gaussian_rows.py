@@ -54,6 +54,11 @@ def row_log_likelihood(
     bins (compiled, :func:`gaussian_exact`), censored bins log Φ((floor − μ)/s) and
     saturated ones log Φ((μ − max)/s) (numpy). :mod:`lidarinv.testing` holds the slow
     reference it is checked against.
+
+    References
+    ----------
+    Tobin, J. (1958). Estimation of relationships for limited dependent variables.
+    *Econometrica* 26(1), 24–36 (censored Gaussian observations).
     """
     fixed = np.zeros(data.axis.size) if fixed_variance is None else fixed_variance
     total = gaussian_exact(

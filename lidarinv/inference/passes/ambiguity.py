@@ -56,6 +56,11 @@ def competing_grounds(log_prob, estimate: MapEstimate, space, separation_m) -> l
     list of (Mode, float)
         The MAP's mode first, then each competing one, with its ground elevation (m); the
         MAP alone where none competes or the ground is not free.
+
+    References
+    ----------
+    MacKay, D. J. C. (2003). *Information Theory, Inference, and Learning Algorithms*.
+    Cambridge University Press, Ch. 27 (Laplace's method) (the Laplace mass of each basin).
     """
     best = Mode(estimate.u, estimate.log_prob, estimate.covariance)
     if "ground_elevation" not in space.names or estimate.covariance is None:

@@ -92,6 +92,12 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
     estimate : MapEstimate
         Its MAP search, for the discrepancy's simulation.
     choice : CohortChoice
+
+    References
+    ----------
+    Schwarz, G. (1978). Estimating the dimension of a model. *Ann. Statist.* 6(2), 461–464.
+    Kass, R. E. & Raftery, A. E. (1995). Bayes factors. *J. Am. Statist. Assoc.* 90(430),
+    773–795.
     """
     shot, candidates = Shot.from_observation(observation, settings), {}  # analysed once
     search, seeds = settings.sampler, None

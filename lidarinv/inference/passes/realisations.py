@@ -202,6 +202,15 @@ def discrepancy_covariance(residuals, shrinkage) -> np.ndarray:
     ------
     ValueError
         For fewer than two residuals or non-finite ones.
+
+    References
+    ----------
+    Schäfer, J. & Strimmer, K. (2005). A shrinkage approach to large-scale covariance matrix
+    estimation and implications for functional genomics. *Stat. Appl. Genet. Mol. Biol.*
+    4(1), Article 32 (shrinkage towards the diagonal of the sample covariance; here with a
+    fixed weight γ, not their estimated one).
+    Ledoit, O. & Wolf, M. (2004). A well-conditioned estimator for large-dimensional
+    covariance matrices. *J. Multivariate Anal.* 88(2), 365–411.
     """
     residuals = np.asarray(residuals, float)
     if residuals.ndim != 2 or residuals.shape[0] < 2:

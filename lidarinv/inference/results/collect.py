@@ -154,6 +154,17 @@ def fit_statistics(log_likelihood, observed, replicated, mean, variance) -> dict
         scatter the model allows; 1 where the model explains the waveform, and how far off
         it is where the p-value flags a misfit (over a long window a p-value finds small
         misfits as readily as large ones).
+
+    References
+    ----------
+    Gelman, A., Carlin, J. B., Stern, H. S. & Rubin, D. B. (2004). *Bayesian Data Analysis*,
+    2nd ed., Chapman & Hall/CRC, Sec. 6.7 (DIC with p_V = var(D)/2).
+    Spiegelhalter, D. J., Best, N. G., Carlin, B. P. & van der Linde, A. (2002). Bayesian
+    measures of model complexity and fit. *J. R. Statist. Soc. B* 64(4), 583–639 (the
+    deviance information criterion).
+    Gelman, A., Meng, X.-L. & Stern, H. (1996). Posterior predictive assessment of model
+    fitness via realized discrepancies. *Statistica Sinica* 6(4), 733–807 (the posterior-
+    predictive p-value of a realised discrepancy).
     """
     deviance = -2.0 * np.asarray(log_likelihood, float)
     deviance = deviance[np.isfinite(deviance)]

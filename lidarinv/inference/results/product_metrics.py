@@ -45,6 +45,16 @@ def product_relative_heights(mean, axis, ground, baseline, analysis, processing,
         signal end and start lies, the energy smoothed by the analysis' σ where the
         product smooths, less ``baseline`` where it takes the energy above the noise;
         NaN where the extent holds no bin of ``axis`` or no energy.
+
+    References
+    ----------
+    Hofton, M. & Blair, J. B. (2019). *Algorithm Theoretical Basis Document (ATBD) for GEDI
+    Transmit and Receive Waveform Processing for L1 and L2 Products*, version 1.0. NASA
+    Goddard Space Flight Center, Greenbelt, MD (GEDI L2A's RH on the smoothed, noise-
+    subtracted waveform).
+    Blair, J. B., Rabine, D. L. & Hofton, M. A. (1999). The Laser Vegetation Imaging Sensor:
+    a medium-altitude, digitisation-only, airborne laser altimeter for mapping vegetation
+    and topography. *ISPRS J. Photogramm. Remote Sens.* 54(2–3), 115–122 (LVIS L2's RH).
     """
     mean = np.atleast_2d(np.asarray(mean, float))
     axis = np.asarray(axis, float)

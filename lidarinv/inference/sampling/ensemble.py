@@ -11,7 +11,15 @@ FIRST_CHUNK = 1000
 class BatchedSampler(emcee.EnsembleSampler):
     """emcee's sampler for a log-probability that returns one (n, 1 + n_blobs) float array
     per batch (:class:`.posterior.LogPosterior`): the log-probability and the blobs are
-    columns of it, not split walker by walker."""
+    columns of it, not split walker by walker.
+
+    References
+    ----------
+    Foreman-Mackey, D., Hogg, D. W., Lang, D. & Goodman, J. (2013). emcee: the MCMC hammer.
+    *PASP* 125(925), 306–312.
+    Goodman, J. & Weare, J. (2010). Ensemble samplers with affine invariance. *Commun. Appl.
+    Math. Comput. Sci.* 5(1), 65–80.
+    """
 
     def compute_log_prob(self, coords):
         """emcee's ``compute_log_prob`` for a log-probability that returns one (n, 1 + n_blobs)

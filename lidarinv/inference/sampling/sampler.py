@@ -158,6 +158,13 @@ def burn_in(n_steps, tau, burn_taus, floor=0) -> int:
     int
         ``burn_taus`` times the largest finite τ, at most a third of the chain (a third
         while τ is unknown), and never fewer than ``floor``.
+
+    References
+    ----------
+    Sokal, A. (1997). Monte Carlo methods in statistical mechanics: foundations and new
+    algorithms. In C. DeWitt-Morette, P. Cartier & A. Folacci (eds), *Functional
+    Integration: Basics and Applications*, NATO ASI Series B 361, Springer, 131–192 (the
+    initial transient, discarded in units of the autocorrelation time).
     """
     third = n_steps // 3
     if not np.all(np.isfinite(tau)):
@@ -248,6 +255,15 @@ def run_sampler(
     ----------
     Foreman-Mackey, D., Hogg, D. W., Lang, D. & Goodman, J. (2013). emcee: the MCMC
     hammer. *PASP* 125, 306–312.
+    Goodman, J. & Weare, J. (2010). Ensemble samplers with affine invariance. *Commun.
+    Appl. Math. Comput. Sci.* 5(1), 65–80 (the integrated autocorrelation time of an
+    ensemble).
+    Sokal, A. (1997). Monte Carlo methods in statistical mechanics: foundations and new
+    algorithms. In C. DeWitt-Morette, P. Cartier & A. Folacci (eds), *Functional
+    Integration: Basics and Applications*, NATO ASI Series B 361, Springer, 131–192.
+    emcee documentation, "Autocorrelation analysis & convergence",
+    https://emcee.readthedocs.io/en/stable/tutorials/autocorr/ (τ's estimate and the
+    chain's length as a multiple of it).
     """
     s = SamplerSettings() if settings is None else settings
     ndim = space.ndim

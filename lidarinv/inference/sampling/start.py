@@ -34,7 +34,13 @@ class MapEstimate:
 
 @dataclass
 class Mode:
-    """One basin of the posterior: an optimum, its log-posterior and Laplace covariance."""
+    """One basin of the posterior: an optimum, its log-posterior and Laplace covariance.
+
+    References
+    ----------
+    MacKay, D. J. C. (2003). *Information Theory, Inference, and Learning Algorithms*.
+    Cambridge University Press, Ch. 27 (Laplace's method).
+    """
 
     u: np.ndarray
     log_prob: float
@@ -187,6 +193,13 @@ def laplace_covariance(log_prob, u, step=1e-3, max_variance=4.0) -> np.ndarray:
     -------
     array (ndim, ndim)
         Positive definite: eigenvalues clipped; 1e-4·I where a difference is not finite.
+
+    References
+    ----------
+    MacKay, D. J. C. (2003). *Information Theory, Inference, and Learning Algorithms*.
+    Cambridge University Press, Ch. 27 (Laplace's method).
+    Tierney, L. & Kadane, J. B. (1986). Accurate approximations for posterior moments and
+    marginal densities. *J. Am. Statist. Assoc.* 81(393), 82–86.
     """
     n = u.size
     eye = step * np.eye(n)

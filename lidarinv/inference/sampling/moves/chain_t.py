@@ -24,6 +24,13 @@ class ChainStudentMove(EnsembleStudentMove):
     :meth:`fit` is called it is the ensemble-t move. :func:`..sampler.run_sampler` fits
     it at a few early steps and then freezes it: between fits the proposal is one fixed
     distribution, so each stretch is an exact MCMC chain.
+
+    References
+    ----------
+    Tierney, L. (1994). Markov chains for exploring posterior distributions. *Ann. Statist.*
+    22(4), 1701–1728 (independence proposals and their Hastings factor).
+    Goodman, J. & Weare, J. (2010). Ensemble samplers with affine invariance. *Commun. Appl.
+    Math. Comput. Sci.* 5(1), 65–80 (the replacement move).
     """
 
     def __init__(self, dof=8.0, scale=1.0, **kwargs):

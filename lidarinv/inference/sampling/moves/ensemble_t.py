@@ -30,6 +30,14 @@ class EnsembleStudentMove(BatchAcceptance):
     The complementary half must hold more walkers than dimensions for a full-rank
     covariance; where it does not, or the covariance is singular, the move leaves the
     walkers where they are.
+
+    References
+    ----------
+    Goodman, J. & Weare, J. (2010). Ensemble samplers with affine invariance. *Commun. Appl.
+    Math. Comput. Sci.* 5(1), 65–80 (the replacement move: an independent draw from a
+    density fitted to the complementary walkers; here a Student t).
+    Tierney, L. (1994). Markov chains for exploring posterior distributions. *Ann. Statist.*
+    22(4), 1701–1728 (independence proposals and their Hastings factor).
     """
 
     def __init__(self, dof=8.0, scale=1.0, **kwargs):

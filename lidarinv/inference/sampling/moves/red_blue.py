@@ -12,7 +12,16 @@ from emcee.state import State
 
 
 class BatchAcceptance(RedBlueMove):
-    """A red-blue move whose Metropolis–Hastings tests run on a whole half-ensemble."""
+    """A red-blue move whose Metropolis–Hastings tests run on a whole half-ensemble.
+
+    References
+    ----------
+    Foreman-Mackey, D., Hogg, D. W., Lang, D. & Goodman, J. (2013). emcee: the MCMC hammer.
+    *PASP* 125(925), 306–312 (the red-blue split of the ensemble that moves each half in
+    parallel).
+    Goodman, J. & Weare, J. (2010). Ensemble samplers with affine invariance. *Commun. Appl.
+    Math. Comput. Sci.* 5(1), 65–80.
+    """
 
     def propose(self, model, state):
         """emcee's ``Move.propose``: each half-ensemble proposed and tested in one batch.
