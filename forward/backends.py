@@ -19,7 +19,7 @@ large kernel may live in a module of its own beside its reference
 (:mod:`forward.explicit.column_kernel_numba`), still chosen by :func:`resolve` in the
 reference's module. Without
 numba, :func:`jit` returns the plain Python function and ``"auto"`` resolves to numpy.
-``tests/testing.py`` checks every compiled path against its reference.
+:mod:`lidarinv.testing` checks every compiled path against its reference.
 """
 
 import importlib.util

@@ -215,7 +215,7 @@ def expected_model(quick, repeats):
     out["changed"] = (
         "was ×1.69: an understory sent every row to the per-edge path; now the grid path "
         "adds it layer by layer below the understory top only (L1 ≤ 1e-3, "
-        "tests/test_expected_model.py)"
+        "tests/forward/expected/test_model.py)"
     )
     return out
 

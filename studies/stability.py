@@ -38,7 +38,7 @@ OUT = harness.OUTPUT
 INVARIANTS = ("finite", "gap_range", "gap_monotone", "non_negative", "energy", "errors")
 
 #: Problems this study found in the explicit engine and that were fixed (with their
-#: regression tests in tests/test_properties_forward.py).
+#: regression tests in tests/forward/test_properties.py).
 FIXES = [
     {
         "input": "crown on sloped ground whose base lies below the local ground at some of "

@@ -2,8 +2,8 @@
 the one check of lidarinv.testing: the expected model's processes (depth, point stems,
 grid assembly, the grid path in one call, ground), the stand mapping's identities and the
 ridge maps. The likelihood and the RH kernels are checked against their references in
-tests/test_inference_likelihood.py, the stand mapping as a whole in
-tests/test_inference_stand_mapping.py."""
+tests/lidarinv/inference/likelihood/test_gaussian.py, the stand mapping as a whole in
+tests/lidarinv/inference/model/test_stand.py."""
 
 import numpy as np
 import pytest

@@ -198,3 +198,14 @@ def fake_observations(n: int, rng: np.random.Generator, *, n_bins: int = 120, er
         samples = 5.0 + canopy + ground + rng.normal(0.0, 1.0, n_bins)
         yield Observation(samples=samples, axis=axis, shot_id=shot, noise_mean=5.0,
                           noise_sigma=1.0)  # fmt: skip
+
+
+#: Environment variable naming the folder where :func:`sleepy_invert` leaves its pid.
+PID_FOLDER = "LIDARINV_TEST_WORKER_PIDS"
+
+
+def sleepy_invert(observation, settings=None, *, rng=None, progress=False):
+    """An inversion that leaves its worker's pid in the folder :data:`PID_FOLDER` names,
+    then sleeps far longer than any test (to kill its batch while it works)."""
+    (Path(os.environ[PID_FOLDER]) / str(os.getpid())).touch()
+    time.sleep(300)

@@ -12,7 +12,7 @@ import textwrap
 import h5py
 import numpy as np
 import pytest
-from test_io_gedi_l1b import gedi_shot, write_gedi
+from gedi_files import gedi_shot, write_gedi
 from tiny_results import tiny_result
 
 import lidarinv.inference

@@ -3,7 +3,7 @@
 import json
 
 import numpy as np
-from test_io_gedi_l1b import gedi_shot, write_gedi
+from gedi_files import gedi_shot, write_gedi
 
 from lidarinv.cli import main
 from lidarinv.io import write_observations

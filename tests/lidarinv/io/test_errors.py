@@ -1,7 +1,7 @@
 """Reading errors name the file in one line; absurd samples are refused per shot."""
 
 import pytest
-from test_io_gedi_l1b import gedi_shot, write_gedi
+from gedi_files import gedi_shot, write_gedi
 
 from lidarinv.io import example_file, iter_observations
 from lidarinv.io.formats import inspect_file

@@ -3,7 +3,7 @@
 import sys
 
 import numpy as np
-from test_observe_ground_candidates import GROUND_Z, _shot, closed_canopy  # noqa: F401
+from closed_canopy import GROUND_Z, closed_canopy_shot
 
 from lidarinv.observe import analyse
 from lidarinv.observe.quality import INCONSISTENT, contradictions
@@ -35,14 +35,14 @@ def test_cover_zero_under_a_tall_rh98_is_named():
     assert failed == ["cover 0 with tall RH98"]
 
 
-def test_a_ground_on_the_canopy_is_never_ok(closed_canopy, monkeypatch):  # noqa: F811
+def test_a_ground_on_the_canopy_is_never_ok(monkeypatch):
     """Without the weak-ground search the closed stand's ground lands on a canopy layer
     (the failure of the Mondah shots): the metrics then contradict each other."""
     module = sys.modules["lidarinv.observe.analyse"]
     monkeypatch.setattr(module, "_weak_ground", lambda *args, **kwargs: None)
     statuses = []
     for seed in range(4):
-        result = analyse(_shot(closed_canopy, seed))
+        result = analyse(closed_canopy_shot(seed))
         if abs(result.ground - GROUND_Z) > 5.0:
             assert result.status == INCONSISTENT and not result.quality
             assert result.reason

@@ -61,7 +61,7 @@ def test_the_real_inversion_study_counts_storeys_chosen_by_strong_evidence():
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "studies" / "real_inversion.py"
+    path = Path(__file__).resolve().parents[3] / "studies" / "real_inversion.py"
     spec = importlib.util.spec_from_file_location("real_inversion_study", path)
     study = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(study)

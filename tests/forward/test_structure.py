@@ -5,7 +5,7 @@ import ast
 import graphlib
 from pathlib import Path
 
-FORWARD = Path(__file__).resolve().parent.parent / "forward"
+FORWARD = Path(__file__).resolve().parents[2] / "forward"
 
 
 def _modules():

@@ -11,18 +11,9 @@ import numpy as np
 import pytest
 
 from lidarinv.io import write_observations
-from lidarinv.testing.fake_inversion import fake_observations
+from lidarinv.testing.fake_inversion import PID_FOLDER, fake_observations
 
-ROOT = Path(__file__).resolve().parents[1]
-
-#: Environment variable naming the folder where each worker leaves its pid.
-PID_FOLDER = "LIDARINV_TEST_WORKER_PIDS"
-
-
-def sleepy_invert(observation, settings=None, *, rng=None, progress=False):
-    """An inversion that announces its worker and then takes far longer than the test."""
-    (Path(os.environ[PID_FOLDER]) / str(os.getpid())).touch()
-    time.sleep(300)
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def _alive(pid: int) -> bool:
@@ -59,7 +50,7 @@ def test_workers_end_when_a_batch_is_killed(tmp_path):
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
     command = [sys.executable, "-c", "import sys; from lidarinv.cli import main; sys.exit(main())",
                "batch", str(path), "-o", str(tmp_path / "r.h5"), "--workers", "2",
-               "--no-progress", "--invert", "tests.test_batch_orphans:sleepy_invert"]  # fmt: skip
+               "--no-progress", "--invert", "lidarinv.testing.fake_inversion:sleepy_invert"]  # fmt: skip
     batch = subprocess.Popen(command, cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
                              stderr=subprocess.PIPE)  # fmt: skip
     workers = []

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from closed_canopy import GROUND_Z, LVIS_NOISE_FILTER, closed_canopy, closed_canopy_shot
 
-import forward as fw
-from lidarinv.observe import analyse, estimate_noise, observe
+from lidarinv.observe import analyse, estimate_noise
 from lidarinv.observe.ground_candidates import (
     GroundCandidate,
     choose_ground,
@@ -12,55 +12,21 @@ from lidarinv.observe.ground_candidates import (
     window_sum_sigma,
 )
 
-#: A digitiser noise filter whose autocorrelation is LVIS's measured one
-#: (R(1), R(2), R(3) ≈ 0.60, 0.31, 0.11 on the Mondah waveforms' signal-free bins).
-LVIS_NOISE_FILTER = [1.0, 0.858, 3.257, 1.661]
-GROUND_Z = 100.0  # m
 
-
-@pytest.fixture(scope="module")
-def closed_canopy():
-    """A tall (30–45 m), dense two-storey stand over one LVIS footprint: ground gap ≤ 0.03."""
-    inst = fw.instrument_preset("lvis")
-    rng = np.random.default_rng(3)
-    grid = np.arange(-16, 16.1, 3.2)
-    x, y = (a.ravel() + rng.uniform(-0.8, 0.8, a.size) for a in np.meshgrid(grid, grid))
-    n, m = x.size, 60
-    stand = fw.Stand.from_arrays(
-        x=np.r_[x, rng.uniform(-16, 16, m)],
-        y=np.r_[y, rng.uniform(-16, 16, m)],
-        height=np.r_[rng.uniform(30, 45, n), rng.uniform(11, 20, m)],
-        crown_length=np.r_[rng.uniform(10, 18, n), rng.uniform(4, 10, m)],
-        crown_radius=np.r_[rng.uniform(2.5, 3.5, n), rng.uniform(1.0, 2.0, m)],
-        favd=0.4,
-        shape="ellipsoid",
-    )
-    heights = np.arange(-20, 60, inst.bin_height)
-    waveform = fw.WaveformSimulator(inst).simulate(stand, heights=heights)
-    return inst, waveform
-
-
-def _shot(closed_canopy, seed, gain=30000.0):
-    inst, waveform = closed_canopy
-    return observe(waveform, gain=gain, baseline=64.0, noise_sigma=1.9, quantise=True,
-                   rng=np.random.default_rng(seed), noise_filter=LVIS_NOISE_FILTER,
-                   instrument=inst, ground_elevation=GROUND_Z)  # fmt: skip
-
-
-def test_the_stand_is_closed_and_the_noise_lvis_like(closed_canopy):
-    _, waveform = closed_canopy
+def test_the_stand_is_closed_and_the_noise_lvis_like():
+    _, waveform = closed_canopy()
     assert waveform.ground_gap <= 0.03  # cover ≥ 0.97
     assert waveform.ground_energy < 0.02 * waveform.canopy_energy
-    result = analyse(_shot(closed_canopy, 0))
+    result = analyse(closed_canopy_shot(0))
     assert result.noise.autocorrelation[1:4] == pytest.approx([0.60, 0.31, 0.11], abs=0.1)
 
 
-def test_weak_ground_under_a_closed_canopy_is_found_or_flagged(closed_canopy):
+def test_weak_ground_under_a_closed_canopy_is_found_or_flagged():
     """The ground return, 1/50 of the canopy's energy and no prominent mode, is the
     ground, or the shot is flagged ambiguous with the true ground as the alternative."""
     canopy_taken = 0
     for seed in range(8):
-        result = analyse(_shot(closed_canopy, seed))
+        result = analyse(closed_canopy_shot(seed))
         assert result.ok, result.reason
         if abs(result.ground - GROUND_Z) > 0.5:
             assert "ground ambiguous" in result.flags
