@@ -28,6 +28,54 @@ def _cell(value) -> str:
     return str(value).replace("|", "/")
 
 
+#: A summary's JSON keys → the words a page shows; other keys lose their underscores.
+LABELS = {
+    "scene": "scene",
+    "batch": "waveforms a batch",
+    "repeats": "repeats",
+    "cpu_count": "CPU cores",
+    "load_average_1min": "load average over 1 min (machine)",
+    "load_average": "load average over 1, 5, 15 min (machine)",
+    "start": "at the start",
+    "end": "at the end",
+    "target": "target",
+    "target_seconds": "target (s)",
+    "us_per_waveform": "µs a waveform",
+    "l1_error": "relative L1 error",
+    "l1_error_mean": "relative L1 error, mean",
+    "l1_error_max": "relative L1 error, max",
+    "radial_nodes": "radial nodes",
+    "height_nodes": "height nodes",
+    "depth_nodes": "depth nodes",
+    "backend": "backend",
+    "default_settings": "the default settings",
+    "fastest_meeting_error_target": "the fastest settings within the error target",
+    "default_meets_target": "the default settings meet the target",
+    "pareto_front": "the settings no other beats on both time and error (Pareto front)",
+    "settings": "every setting tried",
+    "seconds": "run (s)",
+    "cpu_seconds": "CPU (s)",
+    "steps": "steps",
+    "max_tau": "largest τ (steps)",
+    "gain_marginalised": "gain integrated out",
+    "unbounded": "unbounded coordinates",
+    "discrepancy_model": "model-discrepancy covariance",
+    "tallest_stem": "tallest stem a parameter",
+    "walkers": "walkers",
+    "moves": "ensemble moves (kind, weight)",
+}
+
+
+def literal(name) -> str:
+    """A quantity's name as the code and the posterior files spell it."""
+    return f"``{name}``"
+
+
+def label(key) -> str:
+    """The page's words for a summary key (:data:`LABELS`)."""
+    return LABELS.get(key, str(key).replace("_", " "))
+
+
 def table(header, rows, title="") -> str:
     """An rst list-table."""
     lines = [f".. list-table:: {title}".rstrip(), "   :header-rows: 1", ""]
@@ -105,7 +153,7 @@ def render_coverage(record, figures: Path, key: str) -> str:
     ]
     rows = [
         [
-            name,
+            literal(name),
             q.get("coverage_68"),
             q.get("coverage_90"),
             q.get("z_median"),
@@ -140,7 +188,7 @@ def _coverage_by_kind(by_kind) -> str:
                 *(quantities.get(n, {}).get("coverage_90") for n in names),
             ]
         )
-    header = ["stand kind", "inverted", "binomial 95 % range", "converged", *names]
+    header = ["stand kind", "inverted", "binomial 95 % range", "converged", *map(literal, names)]
     return (
         "Per stand kind, the share of the truths inside the 90 % intervals (a few shots "
         "each: read it against the binomial range):\n\n" + table(header, rows) + "\n"
@@ -166,7 +214,7 @@ def render_real_products(record, figures: Path, key: str) -> str:
                   "within 1 m"]  # fmt: skip
         rows = [
             [
-                q,
+                literal(q),
                 d.get("n"),
                 d.get("median"),
                 d.get("median_abs"),
@@ -243,11 +291,12 @@ def render_speed(record, figures: Path, key: str) -> str:
         if shots:
             wanted = ("shot", "seconds", "cpu_seconds", "steps", "max_tau", "converged")
             keys = [k for k in wanted if k in shots[0]]
-            text += table(keys, [[r.get(k) for k in keys] for r in shots], f"runs of {name}")
+            header = [label(k) for k in keys]
+            text += table(header, [[r.get(k) for k in keys] for r in shots], f"runs of {name}")
             text += "\n"
     settings = {k: v for k, v in s.items() if not isinstance(v, dict)}
     if settings:
-        text += table(["setting", "value"], [[k, v] for k, v in settings.items()]) + "\n"
+        text += table(["setting", "value"], [[label(k), v] for k, v in settings.items()]) + "\n"
     return text + provenance(record)
 
 
@@ -308,7 +357,7 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
                   "90th pct |d|", "inside", "widened"]  # fmt: skip
         rows = [
             [
-                q,
+                literal(q),
                 d.get("n"),
                 d.get("median"),
                 d.get("median_abs"),
@@ -354,15 +403,17 @@ def render_generic(record, figures: Path, key: str) -> str:
     """Any summary: its scalars, its flat sections and its lists of records as tables."""
     s = record["summary"]
     text = ""
-    scalars = [[k, v] for k, v in s.items() if not isinstance(v, dict | list)]
+    scalars = [[label(k), v] for k, v in s.items() if not isinstance(v, dict | list)]
     if scalars:
         text += table(["field", "value"], scalars) + "\n"
     for name, value in s.items():
         if isinstance(value, dict) and all(not isinstance(v, dict | list) for v in value.values()):
-            text += table(["field", "value"], [[k, v] for k, v in value.items()], name) + "\n"
+            rows = [[label(k), v] for k, v in value.items()]
+            text += table(["field", "value"], rows, label(name)) + "\n"
         elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
             keys = [k for k in value[0] if not isinstance(value[0][k], dict | list)]
-            text += table(keys, [[row.get(k) for k in keys] for row in value], name) + "\n"
+            rows = [[row.get(k) for k in keys] for row in value]
+            text += table([label(k) for k in keys], rows, label(name)) + "\n"
     return text + provenance(record)
 
 
@@ -445,9 +496,18 @@ PAGES = {
     ),
     "real-products": (
         "Real products",
-        "lidarinv against the GEDI L2A/L2B and LVIS L2 products on the shots of the real "
-        "development files (``../shared/data/real``; other shots of the same acquisitions "
-        "are kept aside to check the work).",
+        "lidarinv against the GEDI L2A/L2B and LVIS L2 products on the shots of spatial "
+        "subsets of public NASA products (other shots of the same acquisitions are kept "
+        "aside to check the work). GEDI: orbit O01964 of 2019-04-18 over cerrado savanna "
+        "in Brazil, granules ``GEDI01_B_2019108080338_O01964_T05337_02_003_01``, "
+        "``GEDI02_A_…_02_001_01`` and ``GEDI02_B_…_02_001_01`` (Dubayah et al., GEDI L1B, "
+        "L2A and L2B version 1, NASA LP DAAC; subsets as distributed with the rGEDI "
+        "package's examples). LVIS: the AfriSAR 2016 campaign over the Mondah forest, "
+        "Gabon, granule ``ILVIS1B_GA2016_0308_R1701_045736`` and its L2 (Blair and Hofton, "
+        "AfriSAR LVIS L1B and L2 version 1, NASA NSIDC DAAC; clipped as distributed with "
+        "the rLVIS package's examples). Both archives serve the granules free after an "
+        "Earthdata login; a few shots of each ship with lidarinv "
+        "(:func:`lidarinv.io.example_file`).",
         [
             (
                 "real-products",
