@@ -53,7 +53,7 @@ LABELS = {
     "default_meets_target": "the default settings meet the target",
     "pareto_front": "the settings no other beats on both time and error (Pareto front)",
     "settings": "every setting tried",
-    "seconds": "run (s)",
+    "seconds": "time (s)",
     "cpu_seconds": "CPU (s)",
     "steps": "steps",
     "max_tau": "largest τ (steps)",
@@ -63,6 +63,38 @@ LABELS = {
     "tallest_stem": "tallest stem a parameter",
     "walkers": "walkers",
     "moves": "ensemble moves (kind, weight)",
+    # studies/scaling.py
+    "quick": "quick run (fewer sizes and repeats)",
+    "trees_in_footprint": "Explicit engine against the trees in the footprint (fixed density)",
+    "window_length": "Explicit engine against the waveform window's length",
+    "trees_outside": "Explicit engine against trees beyond the footprint's truncation radius",
+    "empty_scene": "An empty scene against the ground return alone",
+    "truncation": "Explicit engine against the footprint truncation tolerance",
+    "expected_model": "Expected (stand) model with and without the understory",
+    "trees_inside": "trees inside",
+    "sigma_f_m": "σf (m)",
+    "exponent": "log–log slope",
+    "exponent_upper_half": "log–log slope, upper half",
+    "expected": "expected",
+    "bins": "bins",
+    "window_m": "window (m)",
+    "ratio_longest_to_shortest": "time ratio, longest to shortest window",
+    "ratio_most_outside_to_none": "time ratio, most trees outside to none",
+    "empty_scene_seconds": "empty scene (s)",
+    "ground_return_alone_seconds": "ground return alone (s)",
+    "ratio": "ratio",
+    "stand_of_200_trees_seconds": "a stand of 200 trees (s)",
+    "exponent_vs_minus_ln_tol": "log–log slope against −ln(tolerance)",
+    "exponent_vs_trees_reached": "log–log slope against the trees reached",
+    "tolerance": "tolerance",
+    "radius_m": "radius (m)",
+    "trees_reached": "trees reached",
+    "without_understory": "without the understory",
+    "with_understory": "with the understory",
+    "ratio_with_to_without": "time ratio, with to without",
+    "unit": "unit",
+    "changed": "changed",
+    "load_average_start_end": "load average over 1 min at the start and the end (machine)",
 }
 
 
@@ -407,14 +439,35 @@ def render_generic(record, figures: Path, key: str) -> str:
     if scalars:
         text += table(["field", "value"], scalars) + "\n"
     for name, value in s.items():
-        if isinstance(value, dict) and all(not isinstance(v, dict | list) for v in value.values()):
-            rows = [[label(k), v] for k, v in value.items()]
-            text += table(["field", "value"], rows, label(name)) + "\n"
-        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
-            keys = [k for k in value[0] if not isinstance(value[0][k], dict | list)]
-            rows = [[row.get(k) for k in keys] for row in value]
-            text += table([label(k) for k in keys], rows, label(name)) + "\n"
+        text += _section(name, value)
     return text + provenance(record)
+
+
+def _records(value) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
+def _section(name, value) -> str:
+    """A summary's section: a flat dict as fields, a list of records as a table, or a dict
+    of both (a study's part: its rows, then its scalars)."""
+    if _records(value):
+        keys = [k for k in value[0] if not isinstance(value[0][k], dict | list)]
+        rows = [[row.get(k) for k in keys] for row in value]
+        return table([label(k) for k in keys], rows, label(name)) + "\n"
+    if not isinstance(value, dict):
+        return ""
+    flat = [[label(k), v] for k, v in value.items() if not isinstance(v, dict | list)]
+    flat += [[label(k), v] for k, v in value.items() if isinstance(v, list) and not _records(v)]
+    parts = [v for v in value.values() if _records(v)]
+    if not parts:
+        return table(["field", "value"], flat, label(name)) + "\n" if flat else ""
+    text = f"**{label(name)}**\n\n"
+    for part in parts:
+        keys = [k for k in part[0] if not isinstance(part[0][k], dict | list)]
+        text += table([label(k) for k in keys], [[r.get(k) for k in keys] for r in part]) + "\n"
+    if flat:
+        text += table(["field", "value"], flat) + "\n"
+    return text
 
 
 #: Page → (title, intro, sections); a section is (key, heading, renderer, how to run it).
@@ -463,7 +516,7 @@ PAGES = {
                 "scaling",
                 "Cost against the scene",
                 render_generic,
-                "python studies/scaling.py --quick",
+                "python studies/scaling.py",
             ),
         ],
     ),
