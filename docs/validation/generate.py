@@ -474,7 +474,8 @@ def _section(name, value) -> str:
 PAGES = {
     "accuracy": (
         "Accuracy",
-        "How close the fast models come to slow references, and what it costs.",
+        "How close the fast models come to slow references, and what it costs. How "
+        "closely the inversion recovers known truths is on :doc:`calibration`.",
         [
             (
                 "forward-accuracy",
@@ -487,12 +488,6 @@ PAGES = {
                 "Expected-waveform model against its exact integral",
                 render_generic,
                 "python studies/stand_model_runtime_vs_error.py --quick",
-            ),
-            (
-                "recovery",
-                "Inversion on the study's explicit stands",
-                render_coverage,
-                "python studies/recovery.py --n 200 --max-steps 20000 --workers 2",
             ),
         ],
     ),
