@@ -95,6 +95,29 @@ LABELS = {
     "unit": "unit",
     "changed": "changed",
     "load_average_start_end": "load average over 1 min at the start and the end (machine)",
+    # studies/batch_throughput.py
+    "inversion": "inversion",
+    "fake_delay_s": "stand-in's delay a shot (s)",
+    "shots": "shots",
+    "bins_per_shot": "bins a shot",
+    "serial_s_per_shot": "plain loop: s a shot",
+    "serial_footprints_per_core_hour": "plain loop: footprints a core-hour",
+    "serial_orbit_core_hours": "plain loop: core-hours for one GEDI orbit",
+    "store_s_per_shot": "coordinator: s to store a shot",
+    "coordinator_ceiling_shots_per_hour": "coordinator's ceiling: shots an hour",
+    "note": "note",
+    "runs": "batch runs",
+    "workers": "worker processes",
+    "wall_s": "wall (s)",
+    "steady_s_per_shot": "steady state: s a shot",
+    "startup_s": "start-up (s)",
+    "shots_per_s": "shots a second",
+    "footprints_per_core_hour": "footprints a core-hour",
+    "footprints_per_core_hour_incl_startup": "footprints a core-hour, start-up included",
+    "overhead_core_ms_per_shot_vs_serial": "overhead against the plain loop (core-ms a shot)",
+    "gedi_orbit_assumption": "GEDI orbit (assumed)",
+    "shots_per_orbit": "shots an orbit",
+    "basis": "basis",
 }
 
 
@@ -431,6 +454,29 @@ def render_forward_accuracy(record, figures: Path, key: str) -> str:
     return text + table(header, rows) + "\n" + provenance(record)
 
 
+def render_batch(record, figures: Path, key: str) -> str:
+    """Batch throughput (``studies/batch_throughput.py``), real or stand-in inversion."""
+    s = record["summary"]
+    text = ""
+    if s.get("fake_delay_s") is not None:
+        text = (
+            f"A stand-in inversion (``tests/fake_inversion.py``, {_cell(s['fake_delay_s'])} s "
+            "a shot) measures the batch machinery alone: what a batch adds to each shot over "
+            "a plain loop (pool, scheduling, one HDF5 group stored and flushed a shot), and "
+            "the coordinator's ceiling, the most shots an hour one ``batch`` process can "
+            "store however many workers it has. A real shot's own time is in the section "
+            "above; a batch of real shots takes it plus this overhead, per worker.\n\n"
+        )
+    if "orbit_hours_formula" in s:  # in words, below
+        text += (
+            "An orbit's hours on c worker cores: its shots × max(core-seconds a shot / c, "
+            "the coordinator's seconds to store a shot) / 3600, since one coordinating "
+            "process stores every shot.\n\n"
+        )
+        s = {k: v for k, v in s.items() if k != "orbit_hours_formula"}
+    return text + render_generic({**record, "summary": s}, figures, key)
+
+
 def render_generic(record, figures: Path, key: str) -> str:
     """Any summary: its scalars, its flat sections and its lists of records as tables."""
     s = record["summary"]
@@ -503,9 +549,9 @@ PAGES = {
             ),
             (
                 "batch-throughput",
-                "Batch throughput",
-                render_generic,
-                "python studies/batch_throughput.py --shots 16 --max-steps 2000 --workers 1 2",
+                "Batch overhead and the coordinator's ceiling",
+                render_batch,
+                "python studies/batch_throughput.py --fake --shots 200 --workers 1 2",
             ),
             (
                 "scaling",
