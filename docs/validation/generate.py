@@ -12,6 +12,8 @@ Run by ``docs/conf.py`` before Sphinx reads the sources; writes
 import json
 from pathlib import Path
 
+from .labels import LABELS
+
 #: Binomial 95 % range of a coverage, computed where a summary lacks it.
 LEVELS = ("68", "90")
 
@@ -26,99 +28,6 @@ def _cell(value) -> str:
     if isinstance(value, list | tuple):
         return ", ".join(_cell(v) for v in value)
     return str(value).replace("|", "/")
-
-
-#: A summary's JSON keys → the words a page shows; other keys lose their underscores.
-LABELS = {
-    "scene": "scene",
-    "batch": "waveforms a batch",
-    "repeats": "repeats",
-    "cpu_count": "CPU cores",
-    "load_average_1min": "load average over 1 min (machine)",
-    "load_average": "load average over 1, 5, 15 min (machine)",
-    "start": "at the start",
-    "end": "at the end",
-    "target": "target",
-    "target_seconds": "target (s)",
-    "us_per_waveform": "µs a waveform",
-    "l1_error": "relative L1 error",
-    "l1_error_mean": "relative L1 error, mean",
-    "l1_error_max": "relative L1 error, max",
-    "radial_nodes": "radial nodes",
-    "height_nodes": "height nodes",
-    "depth_nodes": "depth nodes",
-    "backend": "backend",
-    "default_settings": "the default settings",
-    "fastest_meeting_error_target": "the fastest settings within the error target",
-    "default_meets_target": "the default settings meet the target",
-    "pareto_front": "the settings no other beats on both time and error (Pareto front)",
-    "settings": "every setting tried",
-    "seconds": "time (s)",
-    "cpu_seconds": "CPU (s)",
-    "steps": "steps",
-    "max_tau": "largest τ (steps)",
-    "gain_marginalised": "gain integrated out",
-    "unbounded": "unbounded coordinates",
-    "discrepancy_model": "model-discrepancy covariance",
-    "tallest_stem": "tallest stem a parameter",
-    "walkers": "walkers",
-    "moves": "ensemble moves (kind, weight)",
-    # studies/scaling.py
-    "quick": "quick run (fewer sizes and repeats)",
-    "trees_in_footprint": "Explicit engine against the trees in the footprint (fixed density)",
-    "window_length": "Explicit engine against the waveform window's length",
-    "trees_outside": "Explicit engine against trees beyond the footprint's truncation radius",
-    "empty_scene": "An empty scene against the ground return alone",
-    "truncation": "Explicit engine against the footprint truncation tolerance",
-    "expected_model": "Expected (stand) model with and without the understory",
-    "trees_inside": "trees inside",
-    "sigma_f_m": "σf (m)",
-    "exponent": "log–log slope",
-    "exponent_upper_half": "log–log slope, upper half",
-    "expected": "expected",
-    "bins": "bins",
-    "window_m": "window (m)",
-    "ratio_longest_to_shortest": "time ratio, longest to shortest window",
-    "ratio_most_outside_to_none": "time ratio, most trees outside to none",
-    "empty_scene_seconds": "empty scene (s)",
-    "ground_return_alone_seconds": "ground return alone (s)",
-    "ratio": "ratio",
-    "stand_of_200_trees_seconds": "a stand of 200 trees (s)",
-    "exponent_vs_minus_ln_tol": "log–log slope against −ln(tolerance)",
-    "exponent_vs_trees_reached": "log–log slope against the trees reached",
-    "tolerance": "tolerance",
-    "radius_m": "radius (m)",
-    "trees_reached": "trees reached",
-    "without_understory": "without the understory",
-    "with_understory": "with the understory",
-    "ratio_with_to_without": "time ratio, with to without",
-    "unit": "unit",
-    "changed": "changed",
-    "load_average_start_end": "load average over 1 min at the start and the end (machine)",
-    # studies/batch_throughput.py
-    "inversion": "inversion",
-    "fake_delay_s": "stand-in's delay a shot (s)",
-    "shots": "shots",
-    "bins_per_shot": "bins a shot",
-    "serial_s_per_shot": "plain loop: s a shot",
-    "serial_footprints_per_core_hour": "plain loop: footprints a core-hour",
-    "serial_orbit_core_hours": "plain loop: core-hours for one GEDI orbit",
-    "store_s_per_shot": "coordinator: s to store a shot",
-    "coordinator_ceiling_shots_per_hour": "coordinator's ceiling: shots an hour",
-    "note": "note",
-    "runs": "batch runs",
-    "workers": "worker processes",
-    "wall_s": "wall (s)",
-    "steady_s_per_shot": "steady state: s a shot",
-    "startup_s": "start-up (s)",
-    "shots_per_s": "shots a second",
-    "footprints_per_core_hour": "footprints a core-hour",
-    "footprints_per_core_hour_incl_startup": "footprints a core-hour, start-up included",
-    "overhead_core_ms_per_shot_vs_serial": "overhead against the plain loop (core-ms a shot)",
-    "gedi_orbit_assumption": "GEDI orbit (assumed)",
-    "shots_per_orbit": "shots an orbit",
-    "basis": "basis",
-}
 
 
 def literal(name) -> str:
