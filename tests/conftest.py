@@ -1,5 +1,8 @@
+import os
+
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 import forward as fw
 from lidarinv.inference.model.priors import LogUniform, TruncatedNormal, Uniform
@@ -37,3 +40,22 @@ def nuisance_priors():
         "baseline": Uniform(-1.0, 1.0),
         "noise_sigma": LogUniform(0.1, 10.0),
     }
+
+
+def pytest_collection_modifyitems(config, items):
+    """The docs build (about a minute and a half) first: with two workers it then runs
+    beside the rest of the suite instead of after it."""
+    items.sort(key=lambda item: item.get_closest_marker("docs") is None)
+
+
+#: One BLAS thread a process when the suite runs on several workers (and in the processes
+#: they start: the docs build, the CLI, batch workers): each worker already has a core, and
+#: BLAS threads waiting for a busy core made small-matrix tests ten times slower.
+ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def pytest_configure(config):
+    if hasattr(config, "workerinput"):  # a pytest-xdist worker
+        for name, value in ONE_THREAD.items():
+            os.environ.setdefault(name, value)
+        threadpool_limits(1)

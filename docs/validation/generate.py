@@ -12,6 +12,8 @@ Run by ``docs/conf.py`` before Sphinx reads the sources; writes
 import json
 from pathlib import Path
 
+from .labels import LABELS
+
 #: Binomial 95 % range of a coverage, computed where a summary lacks it.
 LEVELS = ("68", "90")
 
@@ -26,6 +28,16 @@ def _cell(value) -> str:
     if isinstance(value, list | tuple):
         return ", ".join(_cell(v) for v in value)
     return str(value).replace("|", "/")
+
+
+def literal(name) -> str:
+    """A quantity's name as the code and the posterior files spell it."""
+    return f"``{name}``"
+
+
+def label(key) -> str:
+    """The page's words for a summary key (:data:`LABELS`)."""
+    return LABELS.get(key, str(key).replace("_", " "))
 
 
 def table(header, rows, title="") -> str:
@@ -105,7 +117,7 @@ def render_coverage(record, figures: Path, key: str) -> str:
     ]
     rows = [
         [
-            name,
+            literal(name),
             q.get("coverage_68"),
             q.get("coverage_90"),
             q.get("z_median"),
@@ -140,7 +152,7 @@ def _coverage_by_kind(by_kind) -> str:
                 *(quantities.get(n, {}).get("coverage_90") for n in names),
             ]
         )
-    header = ["stand kind", "inverted", "binomial 95 % range", "converged", *names]
+    header = ["stand kind", "inverted", "binomial 95 % range", "converged", *map(literal, names)]
     return (
         "Per stand kind, the share of the truths inside the 90 % intervals (a few shots "
         "each: read it against the binomial range):\n\n" + table(header, rows) + "\n"
@@ -166,7 +178,7 @@ def render_real_products(record, figures: Path, key: str) -> str:
                   "within 1 m"]  # fmt: skip
         rows = [
             [
-                q,
+                literal(q),
                 d.get("n"),
                 d.get("median"),
                 d.get("median_abs"),
@@ -243,11 +255,12 @@ def render_speed(record, figures: Path, key: str) -> str:
         if shots:
             wanted = ("shot", "seconds", "cpu_seconds", "steps", "max_tau", "converged")
             keys = [k for k in wanted if k in shots[0]]
-            text += table(keys, [[r.get(k) for k in keys] for r in shots], f"runs of {name}")
+            header = [label(k) for k in keys]
+            text += table(header, [[r.get(k) for k in keys] for r in shots], f"runs of {name}")
             text += "\n"
     settings = {k: v for k, v in s.items() if not isinstance(v, dict)}
     if settings:
-        text += table(["setting", "value"], [[k, v] for k, v in settings.items()]) + "\n"
+        text += table(["setting", "value"], [[label(k), v] for k, v in settings.items()]) + "\n"
     return text + provenance(record)
 
 
@@ -308,7 +321,7 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
                   "90th pct |d|", "inside", "widened"]  # fmt: skip
         rows = [
             [
-                q,
+                literal(q),
                 d.get("n"),
                 d.get("median"),
                 d.get("median_abs"),
@@ -350,27 +363,74 @@ def render_forward_accuracy(record, figures: Path, key: str) -> str:
     return text + table(header, rows) + "\n" + provenance(record)
 
 
+def render_batch(record, figures: Path, key: str) -> str:
+    """Batch throughput (``studies/batch_throughput.py``), real or stand-in inversion."""
+    s = record["summary"]
+    text = ""
+    if s.get("fake_delay_s") is not None:
+        text = (
+            f"A stand-in inversion (``tests/fake_inversion.py``, {_cell(s['fake_delay_s'])} s "
+            "a shot) measures the batch machinery alone: what a batch adds to each shot over "
+            "a plain loop (pool, scheduling, one HDF5 group stored and flushed a shot), and "
+            "the coordinator's ceiling, the most shots an hour one ``batch`` process can "
+            "store however many workers it has. A real shot's own time is in the section "
+            "above; a batch of real shots takes it plus this overhead, per worker.\n\n"
+        )
+    if "orbit_hours_formula" in s:  # in words, below
+        text += (
+            "An orbit's hours on c worker cores: its shots × max(core-seconds a shot / c, "
+            "the coordinator's seconds to store a shot) / 3600, since one coordinating "
+            "process stores every shot.\n\n"
+        )
+        s = {k: v for k, v in s.items() if k != "orbit_hours_formula"}
+    return text + render_generic({**record, "summary": s}, figures, key)
+
+
 def render_generic(record, figures: Path, key: str) -> str:
     """Any summary: its scalars, its flat sections and its lists of records as tables."""
     s = record["summary"]
     text = ""
-    scalars = [[k, v] for k, v in s.items() if not isinstance(v, dict | list)]
+    scalars = [[label(k), v] for k, v in s.items() if not isinstance(v, dict | list)]
     if scalars:
         text += table(["field", "value"], scalars) + "\n"
     for name, value in s.items():
-        if isinstance(value, dict) and all(not isinstance(v, dict | list) for v in value.values()):
-            text += table(["field", "value"], [[k, v] for k, v in value.items()], name) + "\n"
-        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
-            keys = [k for k in value[0] if not isinstance(value[0][k], dict | list)]
-            text += table(keys, [[row.get(k) for k in keys] for row in value], name) + "\n"
+        text += _section(name, value)
     return text + provenance(record)
+
+
+def _records(value) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
+def _section(name, value) -> str:
+    """A summary's section: a flat dict as fields, a list of records as a table, or a dict
+    of both (a study's part: its rows, then its scalars)."""
+    if _records(value):
+        keys = [k for k in value[0] if not isinstance(value[0][k], dict | list)]
+        rows = [[row.get(k) for k in keys] for row in value]
+        return table([label(k) for k in keys], rows, label(name)) + "\n"
+    if not isinstance(value, dict):
+        return ""
+    flat = [[label(k), v] for k, v in value.items() if not isinstance(v, dict | list)]
+    flat += [[label(k), v] for k, v in value.items() if isinstance(v, list) and not _records(v)]
+    parts = [v for v in value.values() if _records(v)]
+    if not parts:
+        return table(["field", "value"], flat, label(name)) + "\n" if flat else ""
+    text = f"**{label(name)}**\n\n"
+    for part in parts:
+        keys = [k for k in part[0] if not isinstance(part[0][k], dict | list)]
+        text += table([label(k) for k in keys], [[r.get(k) for k in keys] for r in part]) + "\n"
+    if flat:
+        text += table(["field", "value"], flat) + "\n"
+    return text
 
 
 #: Page → (title, intro, sections); a section is (key, heading, renderer, how to run it).
 PAGES = {
     "accuracy": (
         "Accuracy",
-        "How close the fast models come to slow references, and what it costs.",
+        "How close the fast models come to slow references, and what it costs. How "
+        "closely the inversion recovers known truths is on :doc:`calibration`.",
         [
             (
                 "forward-accuracy",
@@ -383,12 +443,6 @@ PAGES = {
                 "Expected-waveform model against its exact integral",
                 render_generic,
                 "python studies/stand_model_runtime_vs_error.py --quick",
-            ),
-            (
-                "recovery",
-                "Inversion on the study's explicit stands",
-                render_coverage,
-                "python studies/recovery.py --n 200 --max-steps 20000 --workers 2",
             ),
         ],
     ),
@@ -404,15 +458,15 @@ PAGES = {
             ),
             (
                 "batch-throughput",
-                "Batch throughput",
-                render_generic,
-                "python studies/batch_throughput.py --shots 16 --max-steps 2000 --workers 1 2",
+                "Batch overhead and the coordinator's ceiling",
+                render_batch,
+                "python studies/batch_throughput.py --fake --shots 200 --workers 1 2",
             ),
             (
                 "scaling",
                 "Cost against the scene",
                 render_generic,
-                "python studies/scaling.py --quick",
+                "python studies/scaling.py",
             ),
         ],
     ),
@@ -445,9 +499,18 @@ PAGES = {
     ),
     "real-products": (
         "Real products",
-        "lidarinv against the GEDI L2A/L2B and LVIS L2 products on the shots of the real "
-        "development files (``../shared/data/real``; other shots of the same acquisitions "
-        "are kept aside to check the work).",
+        "lidarinv against the GEDI L2A/L2B and LVIS L2 products on the shots of spatial "
+        "subsets of public NASA products (other shots of the same acquisitions are kept "
+        "aside to check the work). GEDI: orbit O01964 of 2019-04-18 over cerrado savanna "
+        "in Brazil, granules ``GEDI01_B_2019108080338_O01964_T05337_02_003_01``, "
+        "``GEDI02_A_…_02_001_01`` and ``GEDI02_B_…_02_001_01`` (Dubayah et al., GEDI L1B, "
+        "L2A and L2B version 1, NASA LP DAAC; subsets as distributed with the rGEDI "
+        "package's examples). LVIS: the AfriSAR 2016 campaign over the Mondah forest, "
+        "Gabon, granule ``ILVIS1B_GA2016_0308_R1701_045736`` and its L2 (Blair and Hofton, "
+        "AfriSAR LVIS L1B and L2 version 1, NASA NSIDC DAAC; clipped as distributed with "
+        "the rLVIS package's examples). Both archives serve the granules free after an "
+        "Earthdata login; a few shots of each ship with lidarinv "
+        "(:func:`lidarinv.io.example_file`).",
         [
             (
                 "real-products",

@@ -127,3 +127,36 @@ def test_validation_pages_show_out_of_family_coverage_per_stand_kind(tmp_path):
     page = {p.stem: p for p in write_validation_pages(tmp_path)}["calibration"].read_text()
     assert "Explicit stands from outside the model family" in page
     assert "emergent" in page and "0.123" in page and "2 of 3" in page
+
+
+def test_every_validation_section_shows_a_published_summary_in_words(tmp_path):
+    """The committed summaries fill every section, and the tables show labels, not the
+    summaries' JSON keys (``load_average_1min``, ``pareto_front``)."""
+    import re
+    import shutil
+
+    from validation.generate import PAGES, write_validation_pages
+
+    shutil.copytree(DOCS / "validation" / "data", tmp_path / "data")
+    pages = {p.stem: p.read_text() for p in write_validation_pages(tmp_path)}
+    assert set(pages) == set(PAGES)
+    for name, text in pages.items():
+        assert "No summary published" not in text, name
+        # titles, header rows and field names are words; quantity names stay ``literals``
+        for block in text.split(".. list-table::")[1:]:
+            rows = re.findall(r"^   \* - (.*)\n((?:     - .*\n)*)", block, re.M)
+            labels = [block.split("\n")[0], rows[0][0], *rows[0][1].split("\n")]
+            labels += [first for first, _ in rows[1:]]
+            for words in (re.sub(r"``[^`]*``", "", cell) for cell in labels):
+                assert not re.search(r"[a-z]_[a-z]", words), (name, words)
+    accuracy = pages["accuracy"]
+    assert "load_average" not in accuracy and "pareto_front" not in accuracy
+    assert "load average over 1 min" in accuracy and "Pareto front" in accuracy
+
+
+def test_no_user_page_names_a_development_path():
+    sources = [*DOCS.rglob("*.rst"), *DOCS.rglob("*.py"), ROOT / "README.md"]
+    for path in sources:
+        if "_build" in path.parts or "generated" in path.parts:
+            continue
+        assert "shared/data" not in path.read_text(), path

@@ -16,7 +16,7 @@ from lidarinv.observe import processing_settings
 from lidarinv.observe.analyse import analyse
 
 SHORT = InversionSettings(discrepancy_model="observed")
-SHORT = replace(SHORT, sampler=replace(SHORT.sampler, max_steps=1000))
+SHORT = replace(SHORT, sampler=replace(SHORT.sampler, max_steps=400))
 
 
 def _analysed(name):

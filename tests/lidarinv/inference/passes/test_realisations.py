@@ -180,7 +180,8 @@ def test_the_instrument_floor_adds_the_observed_per_bin_variance_to_the_covarian
     for floor in (0.0, 0.1):
         settings = InversionSettings(
             realisations=RealisationSettings(count=8, instrument_floor=floor),
-            sampler=SamplerSettings(candidates=64, starts=2),
+            sampler=SamplerSettings(candidates=64, starts=2, polish=1),
+            cohorts=1,  # one MAP search: the floor is the subject, not the stand model
         )
         problem = prepare_problem(shot, settings, np.random.default_rng(5)).problem
         covariances[floor] = problem.log_posterior.likelihood.fixed_discrepancy

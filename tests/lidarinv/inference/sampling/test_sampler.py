@@ -232,19 +232,19 @@ def test_resume_from_hdf5_backend(tmp_path):
         toy,
         space,
         rng,
-        SamplerSettings(n_walkers=8, max_steps=100, check_every=50),
+        SamplerSettings(n_walkers=8, max_steps=50, check_every=25),
         backend=emcee.backends.HDFBackend(str(path), name="shot_1"),
     )
-    assert first.chain.shape[0] == 100
+    assert first.chain.shape[0] == 50
     again = run_sampler(
         toy,
         space,
         rng,
-        SamplerSettings(n_walkers=8, max_steps=180, check_every=40),
+        SamplerSettings(n_walkers=8, max_steps=90, check_every=20),
         backend=emcee.backends.HDFBackend(str(path), name="shot_1"),
     )
-    assert again.chain.shape[0] == 180
-    np.testing.assert_array_equal(again.chain[:100], first.chain)
+    assert again.chain.shape[0] == 90
+    np.testing.assert_array_equal(again.chain[:50], first.chain)
 
 
 def test_chain_t_is_fitted_then_frozen_and_refitted_on_resuming(tmp_path):
@@ -261,17 +261,17 @@ def test_chain_t_is_fitted_then_frozen_and_refitted_on_resuming(tmp_path):
             max_steps=steps,
             check_every=1000,
             moves=moves,
-            fit_steps=(40, 80),
-            fit_fraction=1.0,  # refit at 80 within either cap (120 or 200 steps)
+            fit_steps=(20, 40),
+            fit_fraction=1.0,  # refit at 40 within either cap (60 or 100 steps)
         )
         backend = emcee.backends.HDFBackend(str(path), name="shot_1")
         return run_sampler(toy, space, np.random.default_rng(seed), settings, backend=backend)
 
-    whole = run(tmp_path / "whole.h5", 200, 1)
-    run(tmp_path / "parts.h5", 120, 1)
-    resumed = run(tmp_path / "parts.h5", 200, 2)
+    whole = run(tmp_path / "whole.h5", 100, 1)
+    run(tmp_path / "parts.h5", 60, 1)
+    resumed = run(tmp_path / "parts.h5", 100, 2)
     np.testing.assert_array_equal(resumed.chain, whole.chain)
-    assert whole.burn == resumed.burn == 200 // 3  # τ unknown: a third, past the fit at 40
+    assert whole.burn == resumed.burn == 100 // 3  # τ unknown: a third, past the fit at 20
 
 
 def test_steps_between_chain_t_refits_are_kept(monkeypatch):
