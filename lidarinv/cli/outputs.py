@@ -71,11 +71,12 @@ def check_plot_folder(folder, names=(), overwrite: bool = False, pattern=None) -
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"cannot write figures to {folder}: it is a file")
-    figures = [folder / name for name in names]
-    if folder.is_dir() and pattern is not None:
-        figures += sorted(folder.glob(pattern))
-    check_new_files([(path, "figure") for path in dict.fromkeys(figures)], overwrite)
-    if not folder.exists():
+    if folder.is_dir():  # a new folder holds no figure to replace
+        figures = [folder / name for name in names]
+        if pattern is not None:
+            figures += sorted(folder.glob(pattern))
+        check_new_files([(path, "figure") for path in dict.fromkeys(figures)], overwrite)
+    else:
         check_folder_writable(folder, "figure folder")
         folder.mkdir()
     check_folder_writable(folder / "figure.png", "figures in")

@@ -352,3 +352,14 @@ def test_a_real_sigint_inside_a_kernel_still_ends_in_one_line(tmp_path, capsys, 
         "lidarinv invert: interrupted; no partial output kept"
     ]
     assert not out.exists()
+
+
+def test_a_new_figure_folder_is_made_and_an_old_one_checked(tmp_path):
+    from lidarinv.cli.outputs import check_plot_folder
+
+    fresh = check_plot_folder(tmp_path / "plots", ["a.png"])  # the README's --plots plots
+    assert fresh.is_dir()
+    (fresh / "a.png").write_text("earlier figure")
+    with pytest.raises(ValueError, match=r"a\.png exists; pass --overwrite"):
+        check_plot_folder(fresh, ["a.png"])
+    assert check_plot_folder(fresh, ["a.png"], overwrite=True) == fresh
