@@ -116,43 +116,51 @@ class TwoCohortMapping(StandMapping):
         safe_mean, safe_sd = np.where(ok, mean, 1.0), np.where(ok, sd, 0.1)
         return ok & self.family.valid(safe_mean, safe_sd, self.truncation)
 
+    def _laws(self, heights):
+        """(share, the family's arguments) of each cohort of ``heights`` ((share, mean, sd)
+        per cohort), as :func:`.tallest_stem.condition` and :meth:`_mixture_isf` take them."""
+        return [(f, self.family.arguments(mean, sd, self.truncation)) for f, mean, sd in heights]
+
     def _mixture_moments(self, v):
-        """Per cohort: share, mean, sd, E[π R²] and E[π R² ℓ h] (each (n,))."""
+        """Per cohort: share, mean, sd, E[h], E[π R²], E[π R² ℓ h] (each (n,)) and its
+        height law's arguments (``family.arguments``); both cohorts computed in one pass
+        over stacked (2, n) arrays (the same numbers, half the calls)."""
         r0 = self._value(v, "crown_radius_intercept")
         r1, ratio = v["crown_radius_slope"], v["crown_length_ratio"]
-        out = []
-        for share, mean, sd in self.cohort_heights(v):
-            m = self.family.raw_moments((1, 2, 3), mean, sd, self.truncation)
-            m1, m2, m3 = np.moveaxis(m, -1, 0)
-            area = poisson_stand.crown_area_moment(r0, r1, m1, m2)
-            crown = poisson_stand.crown_volume_moment(r0, r1, m1, m2, m3, ratio)
-            out.append((share, mean, sd, m1, area, crown))
-        return out
+        heights = self.cohort_heights(v)
+        mean, sd = (np.stack(column) for column in tuple(zip(*heights))[1:])
+        args = self.family.arguments(mean, sd, self.truncation)
+        m1, m2, m3 = np.moveaxis(self.family.fast("moments", (1, 2, 3), *args), -1, 0)
+        area = poisson_stand.crown_area_moment(r0, r1, m1, m2)
+        crown = poisson_stand.crown_volume_moment(r0, r1, m1, m2, m3, ratio)
+        return [
+            (share, mean_k, sd_k, m1[k], area[k], crown[k], _cohort_row(args, k))
+            for k, (share, mean_k, sd_k) in enumerate(heights)
+        ]
 
-    def _mixture_isf(self, cohorts, tail):
+    def _mixture_isf(self, laws, tail):
         """The height h where the mixture's survival Σ f_k S_k(h) equals ``tail``; 0
         where ``tail`` ≥ 1.
 
-        The upper storey's own cut, S₁(h₀) = tail/f₁ in closed form, is the answer
-        wherever the lower storey has no trees above it (the usual case for the tallest
-        stems); the other rows are bisected on [h₀, the tallest cohort's top].
+        ``laws`` are (share, the family's arguments) per cohort, upper storey first
+        (:meth:`_laws`). The upper storey's own cut, S₁(h₀) = tail/f₁ in closed form, is
+        the answer wherever the lower storey has no trees above it (the usual case for the
+        tallest stems); the other rows are bisected on [h₀, the tallest cohort's top].
         """
-        family, t = self.family, self.truncation
-        (f1, mean1, sd1), *_ = cohorts
-        args = family.arguments(mean1, sd1, t)
-        cut = family.fast("isf", np.clip(tail / np.maximum(f1, 1e-300), 0.0, 1.0), *args)
+        family = self.family
+        (f1, args1), *_ = laws
+        cut = family.fast("isf", np.clip(tail / np.maximum(f1, 1e-300), 0.0, 1.0), *args1)
 
-        def survival(rows):
-            """The mixture's S(h) on some rows (its laws' arguments computed once)."""
-            laws = [(f[rows], family.arguments(m[rows], s[rows], t)) for f, m, s in cohorts]
-            return lambda h: sum(f * family.fast("sf", h, *a) for f, a in laws), laws
+        def survival(part):
+            """The mixture's S(h) over (share, arguments) of some rows."""
+            return lambda h: sum(f * family.fast("sf", h, *a) for f, a in part)
 
-        every, _ = survival(slice(None))
-        rows = np.flatnonzero(np.abs(every(cut) - tail) > 1e-9 * tail)
+        rows = np.flatnonzero(np.abs(survival(laws)(cut) - tail) > 1e-9 * tail)
         if rows.size:
-            above_rows, laws = survival(rows)
+            part = [(f[rows], _cohort_row(a, rows)) for f, a in laws]
+            above_rows = survival(part)
             low = np.where(tail[rows] < f1[rows], cut[rows], 0.0)
-            high = np.max([family.fast("isf", 1e-12, *a) for _, a in laws], axis=0)
+            high = np.max([family.fast("isf", 1e-12, *a) for _, a in part], axis=0)
             for _ in range(_BISECTION_STEPS):
                 mid = 0.5 * (low + high)
                 above = above_rows(mid) > tail[rows]
@@ -166,18 +174,17 @@ class TwoCohortMapping(StandMapping):
         then Σ f_k ∫_{h*} h f_k(h) dh over the share above the cut."""
         per_m2 = DOMINANT_PER_HA * 1e-4
         tail = np.clip(per_m2 / lam, 1e-9, 1.0)
-        laws = [c[:3] for c in cohorts]
+        laws = [(c[0], c[6]) for c in cohorts]
         cut = self._mixture_isf(laws, tail)
-        args = [self.family.arguments(mean, sd, self.truncation) for _, mean, sd in laws]
-        shares = [f for f, *_ in laws]
-        share = sum(f * self.family.fast("sf", cut, *a) for f, a in zip(shares, args))
-        partial = sum(f * self.family.fast("mean_above", cut, *a) for f, a in zip(shares, args))
+        fast = self.family.fast
+        share = sum(f * fast("sf", cut, *a) for f, a in laws)
+        partial = sum(f * fast("mean_above", cut, *a) for f, a in laws)
         return partial / np.maximum(share, 1e-300)
 
     def _columns(self, v):
         """λ (stems/m²), crown area, mean height, FAVD and crown volume (m³/m²) per row."""
         cohorts = self._mixture_moments(v)
-        (f1, _, _, m1_1, a1, c1), (f2, _, _, m1_2, a2, c2) = cohorts
+        (f1, _, _, m1_1, a1, c1, _), (f2, _, _, m1_2, a2, c2, _) = cohorts
         cone = v["cone_fraction"]
         volume1 = cone * self._volume[0] + (1.0 - cone) * self._volume[1]
         leaf1 = cone * self._leaf[0] + (1.0 - cone) * self._leaf[1]
@@ -218,10 +225,7 @@ class TwoCohortMapping(StandMapping):
 
     def _tallest_stem(self, v, cohorts, lam) -> dict:
         """:func:`.tallest_stem.condition` on the mixture of the two storeys."""
-        laws = [
-            (share, self.family.arguments(mean, sd, self.truncation))
-            for share, mean, sd, *_ in cohorts
-        ]
+        laws = [(c[0], c[6]) for c in cohorts]
         return tallest_stem.condition(
             self.family, laws, self.lowest_height(v), lam * self.tallest_stem_area,
             v[TALLEST_STEM], v[TALLEST_STEM_POSITION], self.footprint_sigma_m,
@@ -245,7 +249,7 @@ class TwoCohortMapping(StandMapping):
         the mixture's S(h) = −ln U / N solved by bisection."""
         with np.errstate(divide="ignore"):
             tail = poisson_stand.tallest_survival(uniform, v["density_m2"] * area)
-        return self._mixture_isf(self.cohort_heights(v), tail)
+        return self._mixture_isf(self._laws(self.cohort_heights(v)), tail)
 
     def lowest_height(self, v) -> np.ndarray:
         """Height of the lowest tree of either storey (m)."""
@@ -267,3 +271,11 @@ class TwoCohortMapping(StandMapping):
         for (share, mean, sd), mix in zip(self.cohort_heights(v), mixes):
             out += share[:, None] * self.shape_profile(mean, sd, mix, v, z)
         return lam[:, None] * out
+
+
+def _cohort_row(args, index):
+    """The family's arguments ``args`` (nested tuples of arrays and scalars) at ``index``
+    of their arrays' leading axis: a cohort of stacked arguments, or some rows."""
+    if isinstance(args, tuple):
+        return tuple(_cohort_row(a, index) for a in args)
+    return args[index] if np.ndim(args) else args
