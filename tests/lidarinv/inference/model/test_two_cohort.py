@@ -91,6 +91,22 @@ def test_cover_and_the_dominant_height_follow_the_mixture_of_the_two_storeys(rng
         assert derived["dominant_height"][i] == pytest.approx(dominant, abs=2e-3)
 
 
+def test_both_storeys_moments_in_one_pass_equal_each_storeys_own(rng):
+    mapping = TwoCohortMapping(default_template())
+    v = _rows(rng)
+    family, t = mapping.family, mapping.truncation
+    r0, r1 = mapping.template.crown_radius_intercept, v["crown_radius_slope"]
+    stacked = mapping._mixture_moments(v)
+    for (share, mean, sd), got in zip(mapping.cohort_heights(v), stacked):
+        m1, m2, m3 = np.moveaxis(family.raw_moments((1, 2, 3), mean, sd, t), -1, 0)
+        area = poisson_stand.crown_area_moment(r0, r1, m1, m2)
+        crown = poisson_stand.crown_volume_moment(r0, r1, m1, m2, m3, v["crown_length_ratio"])
+        for a, b in zip(got[:6], (share, mean, sd, m1, area, crown)):
+            assert np.array_equal(a, b)  # the same numbers, to the last bit
+        law = family.arguments(mean, sd, t)
+        assert np.array_equal(family.fast("sf", mean, *got[6]), family.fast("sf", mean, *law))
+
+
 def test_the_tallest_stem_of_a_two_storey_stand_follows_the_poisson_law(rng):
     mapping = TwoCohortMapping(default_template())
     v = {k: np.repeat(x[:1], 20_000) for k, x in _rows(rng).items()}
