@@ -76,28 +76,21 @@ def cohorts(v, family, truncation, tail, mix_index, cohort2_fractions, two_cohor
     density, cap = v[:, _I["density"]], v[:, _I["height_cap"]]
     capped = np.isfinite(cap)
     mix = v[:, mix_index]
-    # every cohort's law in one pass over arrays stacked on a leading cohort axis (the
-    # same numbers as cohort by cohort, a fraction of the calls)
-    weight, mean, sd = (np.stack(column) for column in zip(*_height_columns(v, two_cohorts)))
-    shape_args, loc, scale = family.arguments(mean, sd, truncation)
-    lo = family.fast("ppf", tail, shape_args, loc, scale)
-    hi = np.maximum(family.fast("isf", tail, shape_args, loc, scale), lo + 1e-6)
-    stems = density * weight
-    if capped.any():  # the tallest stem stops every cohort
-        below = 1.0 - family.fast("sf", np.where(capped, cap, hi), shape_args, loc, scale)
-        stems = np.where(capped, stems * np.clip(below, 0.0, 1.0), stems)
-        hi = np.where(capped, np.maximum(np.minimum(hi, cap), lo + 1e-6), hi)
-    loc = np.broadcast_to(np.asarray(loc, float), weight.shape)
-    shape_args = tuple(np.broadcast_to(np.asarray(x, float), weight.shape) for x in shape_args)
     out = []
-    for cohort in range(weight.shape[0]):
-        column = tuple(x[cohort][..., None] for x in shape_args)
-        args = (column, loc[cohort][..., None], scale[cohort][:, None])
+    for cohort, (weight, mean, sd) in enumerate(_height_columns(v, two_cohorts)):
+        shape_args, loc, scale = family.arguments(mean, sd, truncation)
+        lo = family.fast("ppf", tail, shape_args, loc, scale)
+        hi = np.maximum(family.fast("isf", tail, shape_args, loc, scale), lo + 1e-6)
+        stems = density * weight
+        if capped.any():  # the tallest stem stops every cohort
+            below = 1.0 - family.fast("sf", np.where(capped, cap, hi), shape_args, loc, scale)
+            stems = np.where(capped, stems * np.clip(below, 0.0, 1.0), stems)
+            hi = np.where(capped, np.maximum(np.minimum(hi, cap), lo + 1e-6), hi)
+        column = tuple(np.asarray(x, float)[..., None] for x in shape_args)
+        args = (column, np.asarray(loc, float)[..., None], scale[:, None])
         pdf = partial(_family_pdf, family.fast, args)
         fractions = mix if cohort == 0 else cohort2_fractions
-        out.append(
-            Cohort(stems[cohort], pdf, lo[cohort], hi[cohort], fractions, weight[cohort] > 0)
-        )
+        out.append(Cohort(stems, pdf, lo, hi, fractions, weight > 0))
     apex = v[:, _I["apex_density"]]
     if np.any(apex > 0):  # physical rows with apex trees have a finite cap
         top = np.where(capped, cap, 1.0)
