@@ -10,8 +10,16 @@ import pytest
 
 import forward as fw
 from forward.examples import example_stand
-from forward.expected import ExpectedWaveformModel, ModelSettings, depth, grid, ground
+from forward.expected import (
+    ExpectedWaveformModel,
+    ModelSettings,
+    depth,
+    grid,
+    ground,
+    physical_rows,
+)
 from forward.expected.settings import GRID_UNDERSHOOT
+from forward.height_families import HEIGHT_DISTRIBUTIONS
 from lidarinv.inference.model import coordinates
 from lidarinv.inference.model.parameters import DEFAULT_STRUCTURE_PRIORS, default_space
 from lidarinv.inference.model.stand import TOP_SDS, StandMapping, default_template
@@ -184,3 +192,25 @@ def test_ridge_maps_compiled_equal_numpy(nuisance_priors):
             coordinates.ridges_from_unbounded, u, x, log_jac, *maps, space.interception_slope,
             rtol=1e-12, atol=1e-10,
         )  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(TEMPLATES))
+def test_physical_rows_kernel_equals_the_numpy_path(name):
+    """Rows broken every way the check looks for: non-finite fields (an infinite cap, with
+    and without apex stems), fields on and beyond their bounds, shape fractions off 1, and
+    cohort 2 without a valid law, with and without trees."""
+    model, full, _ = _case(name, n=5)
+    rng = np.random.default_rng(11)
+    rows = np.repeat(full, 60, axis=0)
+    index = fw.VECTOR_FIELDS.index
+    breaks = (np.nan, np.inf, -np.inf, 0.0, -1.0, 1.0, 2.0, 1.0 - 1e-7)
+    for row in rows[5:]:  # the first rows stay valid
+        for field in rng.choice(len(fw.VECTOR_FIELDS), rng.integers(1, 3), replace=False):
+            row[field] = rng.choice(breaks)
+    rows[5:40:7, index("height_cap")] = np.inf
+    rows[5:40:14, index("apex_density")] = 0.0
+    rows[40:80:3, index("cohort2_fraction")] = 0.3
+    rows[40:80:5, index("cohort2_height_sd")] = -1.0
+    family = HEIGHT_DISTRIBUTIONS[model.template.height_family]
+    ok = assert_backends_agree(physical_rows, rows, family, model.template.height_truncation)
+    assert ok[:5].all() and not ok.all()

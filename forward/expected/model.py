@@ -249,7 +249,7 @@ class ExpectedWaveformModel:
         return self._valid(self._full(theta))
 
     def _valid(self, v):
-        return physical_rows(v, self._family, self.template.height_truncation)
+        return physical_rows(v, self._family, self.template.height_truncation, backend=self.backend)
 
     # evaluation --------------------------------------------------------------------------
     def __call__(self, theta) -> np.ndarray:

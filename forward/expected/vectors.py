@@ -12,6 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..backends import as_float64, jit, resolve
 from ..crowns import SHAPE_NAMES
 from ..stand_params import StandParams
 
@@ -116,7 +117,7 @@ def _bounds():
 _LOWER, _CLOSED, _UPPER = _bounds()
 
 
-def physical_rows(v, family, truncation):
+def physical_rows(v, family, truncation, backend="auto"):
     """Which full vectors describe a physical stand.
 
     Parameters
@@ -128,6 +129,10 @@ def physical_rows(v, family, truncation):
         Height family of both cohorts.
     truncation : float (sd units)
         Truncation of the ``truncnorm`` family.
+    backend : str
+        ``"auto"``, ``"numba"`` or ``"numpy"`` (:mod:`forward.backends`): compiled, the
+        checks of every field run in one pass over each row, and only the family's own
+        validity in numpy; the same answer.
 
     Returns
     -------
@@ -135,6 +140,22 @@ def physical_rows(v, family, truncation):
         Finite values within each field's bounds, shape fractions summing to 1, height
         moments the family supports (cohort 2's only where it has trees).
     """
+    if resolve(backend) == "numpy":
+        return _physical_rows_numpy(v, family, truncation)
+    v = as_float64(v)
+    ok = _physical_rows(v, _LOWER, _CLOSED, _UPPER, _MIX, _KERNEL_COLUMNS)
+    heights = v[:, _HEIGHT_COLUMNS]  # as the reference takes them: non-finite values as 1
+    heights = np.where(np.isfinite(heights), heights, 1.0)
+    ok &= family.valid(heights[:, 0], heights[:, 1], truncation)
+    two = heights[:, 2] > 0
+    if np.any(two):  # cohort 2's distribution matters only where it has trees
+        good = family.valid(np.abs(heights[:, 3]) + 1e-9, np.abs(heights[:, 4]), truncation)
+        ok &= ~two | good
+    return ok
+
+
+def _physical_rows_numpy(v, family, truncation):
+    """The numpy reference of :func:`physical_rows`."""
     finite = np.isfinite(v)
     uncapped = v[:, _I["height_cap"]] == np.inf
     finite[:, _I["height_cap"]] |= uncapped
@@ -150,6 +171,51 @@ def physical_rows(v, family, truncation):
         good = (mean > 0) & (sd > 0)
         good &= family.valid(np.abs(mean) + 1e-9, np.abs(sd), truncation)
         ok &= ~two | good
+    return ok
+
+
+#: Columns the kernel of :func:`physical_rows` reads by name: the cap, the apex density,
+#: cohort 2's share, mean and sd.
+_KERNEL_COLUMNS = np.array(
+    [_I[name] for name in ("height_cap", "apex_density", "cohort2_fraction",
+                           "cohort2_height_mean", "cohort2_height_sd")], np.intp,
+)  # fmt: skip
+#: Columns the family's validity reads: cohort 1's mean and sd, then cohort 2's share, mean
+#: and sd.
+_HEIGHT_COLUMNS = np.array([_I["height_mean"], _I["height_sd"], *_KERNEL_COLUMNS[2:]], np.intp)
+
+
+@jit
+def _physical_rows(v, lower, closed, upper, mix, columns):
+    """The kernel of :func:`physical_rows` but for the family's validity: finite values
+    within bounds (an infinite cap without apex trees allowed), shape fractions summing to
+    1, and cohort 2's positive mean and sd where it has trees."""
+    n, fields = v.shape
+    cap, apex, share, mean2, sd2 = columns[0], columns[1], columns[2], columns[3], columns[4]
+    ok = np.ones(n, np.bool_)
+    for r in range(n):
+        good = True
+        for j in range(fields):
+            x = v[r, j]
+            if not np.isfinite(x):
+                if j == cap and x == np.inf:
+                    good = good and not (v[r, apex] > 0)
+                else:
+                    good = False
+                    x = 1.0
+            above = x > lower[j] or (x == lower[j] and closed[j])
+            good = good and above and x <= upper[j]
+        total = 0.0
+        for k in range(mix.size):
+            x = v[r, mix[k]]
+            total += x if np.isfinite(x) else 1.0
+        good = good and abs(total - 1.0) < 1e-6
+        x = v[r, share]
+        if (x if np.isfinite(x) else 1.0) > 0:
+            m, s = v[r, mean2], v[r, sd2]
+            m, s = (m if np.isfinite(m) else 1.0), (s if np.isfinite(s) else 1.0)
+            good = good and m > 0 and s > 0
+        ok[r] = good
     return ok
 
 

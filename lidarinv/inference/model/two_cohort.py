@@ -116,68 +116,75 @@ class TwoCohortMapping(StandMapping):
         safe_mean, safe_sd = np.where(ok, mean, 1.0), np.where(ok, sd, 0.1)
         return ok & self.family.valid(safe_mean, safe_sd, self.truncation)
 
+    def _stacked_laws(self, heights):
+        """The cohorts' shares (a tuple) and their height laws' arguments
+        (``family.arguments``) stacked on a leading cohort axis, of ``heights`` ((share,
+        mean, sd) per cohort): every cohort's function in one call (:func:`_mixture_sum`)."""
+        mean, sd = (np.stack(column) for column in tuple(zip(*heights))[1:])
+        shares = tuple(share for share, _, _ in heights)
+        return shares, self.family.arguments(mean, sd, self.truncation)
+
     def _mixture_moments(self, v):
-        """Per cohort: share, mean, sd, E[π R²] and E[π R² ℓ h] (each (n,))."""
+        """Per cohort: share, mean, sd, E[h], E[π R²] and E[π R² ℓ h] (each (n,)); and the
+        cohorts' shares and stacked arguments (:meth:`_stacked_laws`). Both cohorts are
+        computed in one pass over stacked (2, n) arrays (the same numbers, half the calls)."""
         r0 = self._value(v, "crown_radius_intercept")
         r1, ratio = v["crown_radius_slope"], v["crown_length_ratio"]
-        out = []
-        for share, mean, sd in self.cohort_heights(v):
-            m = self.family.raw_moments((1, 2, 3), mean, sd, self.truncation)
-            m1, m2, m3 = np.moveaxis(m, -1, 0)
-            area = poisson_stand.crown_area_moment(r0, r1, m1, m2)
-            crown = poisson_stand.crown_volume_moment(r0, r1, m1, m2, m3, ratio)
-            out.append((share, mean, sd, m1, area, crown))
-        return out
+        heights = self.cohort_heights(v)
+        shares, args = self._stacked_laws(heights)
+        m1, m2, m3 = np.moveaxis(self.family.fast("moments", (1, 2, 3), *args), -1, 0)
+        area = poisson_stand.crown_area_moment(r0, r1, m1, m2)
+        crown = poisson_stand.crown_volume_moment(r0, r1, m1, m2, m3, ratio)
+        cohorts = [
+            (share, mean, sd, m1[k], area[k], crown[k])
+            for k, (share, mean, sd) in enumerate(heights)
+        ]
+        return cohorts, (shares, args)
 
-    def _mixture_isf(self, cohorts, tail):
+    def _mixture_isf(self, laws, tail):
         """The height h where the mixture's survival Σ f_k S_k(h) equals ``tail``; 0
         where ``tail`` ≥ 1.
 
-        The upper storey's own cut, S₁(h₀) = tail/f₁ in closed form, is the answer
-        wherever the lower storey has no trees above it (the usual case for the tallest
-        stems); the other rows are bisected on [h₀, the tallest cohort's top].
+        ``laws`` are the cohorts' shares and stacked arguments, upper storey first
+        (:meth:`_stacked_laws`). The upper storey's own cut, S₁(h₀) = tail/f₁ in closed
+        form, is the answer wherever the lower storey has no trees above it (the usual case
+        for the tallest stems); the other rows are bisected on [h₀, the tallest cohort's
+        top].
         """
-        family, t = self.family, self.truncation
-        (f1, mean1, sd1), *_ = cohorts
-        args = family.arguments(mean1, sd1, t)
-        cut = family.fast("isf", np.clip(tail / np.maximum(f1, 1e-300), 0.0, 1.0), *args)
-
-        def survival(rows):
-            """The mixture's S(h) on some rows (its laws' arguments computed once)."""
-            laws = [(f[rows], family.arguments(m[rows], s[rows], t)) for f, m, s in cohorts]
-            return lambda h: sum(f * family.fast("sf", h, *a) for f, a in laws), laws
-
-        every, _ = survival(slice(None))
-        rows = np.flatnonzero(np.abs(every(cut) - tail) > 1e-9 * tail)
+        fast = self.family.fast
+        shares, args = laws
+        f1 = shares[0]
+        cut = fast("isf", np.clip(tail / np.maximum(f1, 1e-300), 0.0, 1.0), *_cohort_row(args, 0))
+        rows = np.flatnonzero(np.abs(_mixture_sum(fast, "sf", cut, *laws) - tail) > 1e-9 * tail)
         if rows.size:
-            above_rows, laws = survival(rows)
+            part = tuple(f[rows] for f in shares), _cohort_row(args, (slice(None), rows))
             low = np.where(tail[rows] < f1[rows], cut[rows], 0.0)
-            high = np.max([family.fast("isf", 1e-12, *a) for _, a in laws], axis=0)
+            high = np.max(fast("isf", 1e-12, *part[1]), axis=0)
             for _ in range(_BISECTION_STEPS):
                 mid = 0.5 * (low + high)
-                above = above_rows(mid) > tail[rows]
+                above = _mixture_sum(fast, "sf", mid, *part) > tail[rows]
                 low, high = np.where(above, mid, low), np.where(above, high, mid)
             cut[rows] = 0.5 * (low + high)
         return np.where(tail < 1.0, cut, 0.0)
 
-    def _dominant_height(self, cohorts, lam):
+    def _dominant_height(self, laws, lam):
         """Mean height of the :data:`DOMINANT_PER_HA` tallest stems per hectare of the
-        mixture: its cut h* solves λ·Σ f_k S_k(h*) = the dominant density (bisection),
-        then Σ f_k ∫_{h*} h f_k(h) dh over the share above the cut."""
+        mixture (``laws``: :meth:`_stacked_laws`): its cut h* solves λ·Σ f_k S_k(h*) = the
+        dominant density (bisection), then Σ f_k ∫_{h*} h f_k(h) dh over the share above
+        the cut."""
         per_m2 = DOMINANT_PER_HA * 1e-4
         tail = np.clip(per_m2 / lam, 1e-9, 1.0)
-        laws = [c[:3] for c in cohorts]
         cut = self._mixture_isf(laws, tail)
-        args = [self.family.arguments(mean, sd, self.truncation) for _, mean, sd in laws]
-        shares = [f for f, *_ in laws]
-        share = sum(f * self.family.fast("sf", cut, *a) for f, a in zip(shares, args))
-        partial = sum(f * self.family.fast("mean_above", cut, *a) for f, a in zip(shares, args))
+        fast = self.family.fast
+        share = _mixture_sum(fast, "sf", cut, *laws)
+        partial = _mixture_sum(fast, "mean_above", cut, *laws)
         return partial / np.maximum(share, 1e-300)
 
     def _columns(self, v):
-        """λ (stems/m²), crown area, mean height, FAVD and crown volume (m³/m²) per row."""
-        cohorts = self._mixture_moments(v)
-        (f1, _, _, m1_1, a1, c1), (f2, _, _, m1_2, a2, c2) = cohorts
+        """The cohorts and their laws (:meth:`_mixture_moments`), then λ (stems/m²), crown
+        area, mean height, FAVD and crown volume (m³/m²) per row."""
+        mixture = self._mixture_moments(v)
+        (f1, _, _, m1_1, a1, c1), (f2, _, _, m1_2, a2, c2) = mixture[0]
         cone = v["cone_fraction"]
         volume1 = cone * self._volume[0] + (1.0 - cone) * self._volume[1]
         leaf1 = cone * self._leaf[0] + (1.0 - cone) * self._leaf[1]
@@ -188,19 +195,19 @@ class TwoCohortMapping(StandMapping):
         leaf_moment = f1 * c1 * leaf1 + f2 * c2 * self._mix2_leaf
         favd = poisson_stand.favd_from_lai(v["pai"], lam, leaf_moment, 1.0)
         volume = poisson_stand.crown_volume(lam, volume_moment, 1.0)
-        return cohorts, lam, area, f1 * m1_1 + f2 * m1_2, favd, volume
+        return mixture, lam, area, f1 * m1_1 + f2 * m1_2, favd, volume
 
     def model_vectors(self, v):
         """Expected-model vectors and derived quantities (as
         :meth:`.stand.StandMapping.model_vectors`), with cohort 2's share, mean and sd."""
-        cohorts, lam, area, mean_height, favd, volume = self._columns(v)
+        (cohorts, laws), lam, area, mean_height, favd, volume = self._columns(v)
         (_, mean1, _, *_), (f2, mean2, sd2, *_) = cohorts
         fields = self.stand_fields(v, lam, mean1, favd)
         fields.update(
             {"cohort2_fraction": f2, "cohort2_height_mean": mean2, "cohort2_height_sd": sd2}
         )
         if self.conditioned:
-            stem = self._tallest_stem(v, cohorts, lam)
+            stem = self._tallest_stem(v, laws, lam)
             fields.update(stem.pop("fields"))
         vectors = vectors_by_name(fields, self.model_free)
         derived = {
@@ -208,7 +215,7 @@ class TwoCohortMapping(StandMapping):
             "density": lam * 1e4,
             "favd": favd,
             "mean_height": mean_height,
-            "dominant_height": self._dominant_height(cohorts, lam),
+            "dominant_height": self._dominant_height(laws, lam),
             "crown_volume": volume * 1e4,
             "lai": v["pai"] + v["understory_lai"],
         }
@@ -216,14 +223,13 @@ class TwoCohortMapping(StandMapping):
             derived.update(stem)
         return vectors, derived
 
-    def _tallest_stem(self, v, cohorts, lam) -> dict:
-        """:func:`.tallest_stem.condition` on the mixture of the two storeys."""
-        laws = [
-            (share, self.family.arguments(mean, sd, self.truncation))
-            for share, mean, sd, *_ in cohorts
-        ]
+    def _tallest_stem(self, v, laws, lam) -> dict:
+        """:func:`.tallest_stem.condition` on the mixture of the two storeys (``laws``:
+        :meth:`_stacked_laws`)."""
+        shares, args = laws
+        per_cohort = [(f, _cohort_row(args, k)) for k, f in enumerate(shares)]
         return tallest_stem.condition(
-            self.family, laws, self.lowest_height(v), lam * self.tallest_stem_area,
+            self.family, per_cohort, self.lowest_height(v), lam * self.tallest_stem_area,
             v[TALLEST_STEM], v[TALLEST_STEM_POSITION], self.footprint_sigma_m,
         )  # fmt: skip
 
@@ -245,7 +251,7 @@ class TwoCohortMapping(StandMapping):
         the mixture's S(h) = −ln U / N solved by bisection."""
         with np.errstate(divide="ignore"):
             tail = poisson_stand.tallest_survival(uniform, v["density_m2"] * area)
-        return self._mixture_isf(self.cohort_heights(v), tail)
+        return self._mixture_isf(self._stacked_laws(self.cohort_heights(v)), tail)
 
     def lowest_height(self, v) -> np.ndarray:
         """Height of the lowest tree of either storey (m)."""
@@ -267,3 +273,18 @@ class TwoCohortMapping(StandMapping):
         for (share, mean, sd), mix in zip(self.cohort_heights(v), mixes):
             out += share[:, None] * self.shape_profile(mean, sd, mix, v, z)
         return lam[:, None] * out
+
+
+def _cohort_row(args, index):
+    """The family's arguments ``args`` (nested tuples of arrays and scalars) at ``index``
+    of their arrays' leading axis: a cohort of stacked arguments, or some rows."""
+    if isinstance(args, tuple):
+        return tuple(_cohort_row(a, index) for a in args)
+    return args[index] if np.ndim(args) else args
+
+
+def _mixture_sum(fast, which, h, shares, args):
+    """Σ_k f_k·F_k(h) of the family's function ``which`` (``fast``), every cohort in one
+    call: ``args`` stacked on a leading cohort axis, ``shares`` one array per cohort."""
+    values = fast(which, h, *args)
+    return sum(f * values[k] for k, f in enumerate(shares))

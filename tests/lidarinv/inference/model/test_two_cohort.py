@@ -12,7 +12,7 @@ from lidarinv.inference import InversionSettings, SamplerSettings
 from lidarinv.inference.model.parameters import default_space
 from lidarinv.inference.model.priors import Uniform
 from lidarinv.inference.model.stand import StandMapping, default_template
-from lidarinv.inference.model.two_cohort import COHORT2, TwoCohortMapping
+from lidarinv.inference.model.two_cohort import COHORT2, TwoCohortMapping, _mixture_sum
 from lidarinv.inference.passes.cohorts import (
     STOREYS_RESOLVED_PULSE_WIDTHS,
     choose_cohorts,
@@ -89,6 +89,27 @@ def test_cover_and_the_dominant_height_follow_the_mixture_of_the_two_storeys(rng
             pdf[top], heights[top]
         )
         assert derived["dominant_height"][i] == pytest.approx(dominant, abs=2e-3)
+
+
+def test_both_storeys_moments_in_one_pass_equal_each_storeys_own(rng):
+    mapping = TwoCohortMapping(default_template())
+    v = _rows(rng)
+    family, t = mapping.family, mapping.truncation
+    r0, r1 = mapping.template.crown_radius_intercept, v["crown_radius_slope"]
+    cohorts, (shares, args) = mapping._mixture_moments(v)
+    survival = dominant_cut = 0.0
+    cut = v["top_height"] * 0.7
+    for k, ((share, mean, sd), got) in enumerate(zip(mapping.cohort_heights(v), cohorts)):
+        m1, m2, m3 = np.moveaxis(family.raw_moments((1, 2, 3), mean, sd, t), -1, 0)
+        area = poisson_stand.crown_area_moment(r0, r1, m1, m2)
+        crown = poisson_stand.crown_volume_moment(r0, r1, m1, m2, m3, v["crown_length_ratio"])
+        for a, b in zip(got, (share, mean, sd, m1, area, crown)):
+            assert np.array_equal(a, b)  # the same numbers, to the last bit
+        assert np.array_equal(shares[k], share)
+        survival = survival + share * family.sf(cut, mean, sd, t)
+        dominant_cut = dominant_cut + share * family.mean_above(cut, mean, sd, t)
+    assert np.array_equal(_mixture_sum(family.fast, "sf", cut, shares, args), survival)
+    assert np.array_equal(_mixture_sum(family.fast, "mean_above", cut, shares, args), dominant_cut)
 
 
 def test_the_tallest_stem_of_a_two_storey_stand_follows_the_poisson_law(rng):
