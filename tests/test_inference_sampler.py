@@ -297,6 +297,7 @@ def test_steps_between_chain_t_refits_are_kept(monkeypatch):
         check_every=100,
         moves=(("de", 0.5), ("chain-t", 0.5)),
         fit_steps=(20, 60),  # τ is unknown at both (the first check is at 100): both made
+        stop_rule="tau",  # its burn-in: 5 τ of every coordinate at the last check
     )
     run = run_sampler(toy, space, rng, settings)
     assert run.converged, run.flags
