@@ -339,13 +339,15 @@ def _convergence_lines(quantities) -> list:
 
 def _convergence_extremes(quantities) -> dict:
     """The smallest bulk and tail ESS and the largest R̂ over the reported quantities."""
-    values = lambda key: [np.nan if d[key] is None else d[key] for d in quantities.values()]  # noqa: E731
-    if not quantities:
-        return {"min_ess_bulk": np.nan, "min_ess_tail": np.nan, "max_rhat": np.nan}
+
+    def extreme(key, pick):  # over the quantities where it is known
+        known = [d[key] for d in quantities.values() if d[key] is not None and np.isfinite(d[key])]
+        return float(pick(known)) if known else np.nan
+
     return {
-        "min_ess_bulk": float(np.min(values("ess_bulk"))),
-        "min_ess_tail": float(np.min(values("ess_tail"))),
-        "max_rhat": float(np.max(values("rhat"))),
+        "min_ess_bulk": extreme("ess_bulk", min),
+        "min_ess_tail": extreme("ess_tail", min),
+        "max_rhat": extreme("rhat", max),
     }
 
 
