@@ -26,13 +26,16 @@ for (``--stop-rule ess-rhat tau``; ``--min-taus 5 10`` gives one ``ess-rhat`` va
 each), and once more as a long reference run (``--reference-steps``: the ``tau`` rule at
 ``--reference-taus`` τ, within that many steps, with a seed of its own). Each run's
 reported quantities' 5/50/95 % quantiles are compared with the reference's, in the
-reference's posterior sd; references are kept in ``--reference-file`` (JSON) and reused,
-so that rules measured in separate calls meet the same reference.
+reference's posterior sd, and with the ``tau`` rule's run of the same shot and seed
+where it ran; references are kept in ``--reference-file`` (JSON) and reused, so that
+rules measured in separate calls meet the same reference. ``--combine`` joins such runs'
+``summary.json`` files into one table and curve.
 
     python studies/inversion_speed.py --data ../shared/data/real --gedi-shots ID ...
                                       --lvis-shots ID ... [--stop-rule ess-rhat tau]
                                       [--min-taus 10] [--reference-steps 50000]
                                       [--reference-taus 200] [--reference-file PATH]
+    python studies/inversion_speed.py --combine SUMMARY.json ... [--tag _NAME]
 
 Writes studies/output/inversion_speed[_TAG]/summary.json and speed.png (synthetic), or
 summary.json and time_vs_error.png (``--data``).
@@ -457,6 +460,10 @@ def main():
     add_sampler_options(parser)
     parser.add_argument("--tag", default="", help="suffix of the output folder")
     parser.add_argument("--data", help="real files: a folder, or 'examples' (lidarinv/data)")
+    parser.add_argument(
+        "--combine", nargs="+", metavar="SUMMARY",
+        help="join the shots of --data runs' summary.json files into one table and curve",
+    )  # fmt: skip
     parser.add_argument("--gedi-shots", nargs="+", help="GEDI shot numbers (with --data)")
     parser.add_argument("--lvis-shots", nargs="+", help="LVIS shot numbers (with --data)")
     parser.add_argument("--stop-rule", nargs="+", default=["ess-rhat"], choices=STOP_RULES)
@@ -474,6 +481,17 @@ def main():
         help="JSON of the long runs, reused across calls",
     )
     args = parser.parse_args()
+    if args.combine:
+        rows = [row for path in args.combine for row in json.loads(Path(path).read_text())["shots"]]
+        for shot in {row["shot"] for row in rows}:
+            _compare_with_tau_rule(rows, shot)
+        variants = list(dict.fromkeys(row["variant"] for row in rows))
+        folder = _output_folder(args.tag)
+        summary = {"variants": _variant_table(rows, variants), "shots": rows}
+        (folder / "summary.json").write_text(json.dumps(summary, indent=1))
+        plot_time_vs_error(rows, variants, folder / "time_vs_error.png")
+        print(json.dumps(summary["variants"], indent=1))
+        return
     if args.data:
         settings = InversionSettings(
             marginalise_gain=not args.sample_gain,
