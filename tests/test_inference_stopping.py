@@ -183,3 +183,25 @@ def test_an_unknown_stop_rule_is_refused_by_name():
             SamplerSettings(stop_rule="never"),
             start=np.zeros(2),
         )
+
+
+def test_every_result_reports_each_quantitys_ess_and_rhat(tmp_path):
+    """The summary text, the batch row and the posterior file carry the monitored
+    quantities' bulk and tail ESS and R̂."""
+    from tiny_results import tiny_result
+
+    from lidarinv.inference.results.result import InversionResult
+
+    result = tiny_result()
+    result.diagnostics["quantities"] = {
+        "top_height": {"ess_bulk": 812.0, "ess_tail": 640.0, "rhat": 1.003, "tau": 55.0},
+        "rh98": {"ess_bulk": 390.0, "ess_tail": np.nan, "rhat": 1.02, "tau": 80.0},
+    }
+    line = "ESS bulk/tail, R̂, τ (steps) of the reported quantities: top_height 812/640/1.003/55, rh98 390/nan/1.020/80"
+    assert line in result.summary_table().splitlines()
+    row = result.summary_row()
+    assert (row["min_ess_bulk"], row["min_ess_tail"], row["max_rhat"]) == (390.0, 640.0, 1.02)
+    result.save(tmp_path / "posterior.h5")
+    back = InversionResult.load(tmp_path / "posterior.h5")
+    assert back.diagnostics["quantities"]["top_height"]["rhat"] == 1.003
+    assert line in back.summary_table().splitlines()
