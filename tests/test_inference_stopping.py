@@ -205,3 +205,13 @@ def test_every_result_reports_each_quantitys_ess_and_rhat(tmp_path):
     back = InversionResult.load(tmp_path / "posterior.h5")
     assert back.diagnostics["quantities"]["top_height"]["rhat"] == 1.003
     assert line in back.summary_table().splitlines()
+
+
+def test_a_quantity_that_does_not_vary_does_not_hold_the_run():
+    """A monitored quantity held fixed has no ESS or R̂ and nothing to converge; one with
+    non-finite draws fails the rule."""
+    constant = quantity_diagnostics({"q": np.full((200, 16), 3.0)})
+    assert constant["q"]["tau"] == 0.0 and np.isnan(constant["q"]["rhat"])
+    assert StopRule().shortfalls(constant, kept_steps=200) == []
+    broken = quantity_diagnostics({"q": np.full((200, 16), np.nan)})
+    assert StopRule().shortfalls(broken, kept_steps=200)

@@ -251,7 +251,7 @@ def run_sampler(
     monitor : callable, optional
         (chain (steps, walkers, ndim), blobs (steps, walkers, n_blobs) or None) → dict of
         name → array (steps, walkers): the quantities the stopping rule judges (e.g.
-        :func:`lidarinv.inference.invert.reported_quantities`); default the sampled
+        :func:`lidarinv.inference.results.reported.reported_monitor`); default the sampled
         coordinates (:func:`.stopping.coordinates_monitor`).
 
     Returns

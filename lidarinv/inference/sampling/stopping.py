@@ -102,6 +102,8 @@ class StopRule:
         """
         out = []
         for name, d in diagnostics.items():
+            if d["tau"] == 0:  # a quantity that does not vary has nothing to converge
+                continue
             if not np.isfinite(d["rhat"]) or d["rhat"] > self.rhat_max:
                 out.append(f"{name} R̂ {d['rhat']:.3f} > {self.rhat_max:g}")
             for kind in ("bulk", "tail"):
@@ -131,7 +133,8 @@ def quantity_diagnostics(draws: dict, thin: int = 1) -> dict:
         walker a chain), ``rhat`` (``rhat`` method ``"rank"``, of
         :data:`SUB_ENSEMBLES` blocks of walkers: :func:`sub_ensemble_chains`) and ``tau``
         (steps): walkers·steps/bulk ESS, the autocorrelation time the bulk ESS implies.
-        NaN where a quantity is not finite or does not vary.
+        NaN where a quantity is not finite or the chain too short; ``tau`` 0 and the
+        rest NaN where it does not vary.
 
     Notes
     -----
@@ -152,8 +155,10 @@ def quantity_diagnostics(draws: dict, thin: int = 1) -> dict:
     finite = {}
     for name, values in draws.items():
         values = np.asarray(values, float).T  # (chains, draws)
-        if values.shape[1] < 4 or not np.all(np.isfinite(values)) or np.ptp(values) == 0:
+        if values.shape[1] < 4 or not np.all(np.isfinite(values)):
             out[name] = dict.fromkeys(DIAGNOSTICS, np.nan)
+        elif np.ptp(values) == 0:  # held fixed: nothing to wait for
+            out[name] = {**dict.fromkeys(DIAGNOSTICS, np.nan), "tau": 0.0}
         else:
             finite[name] = values
     if finite:
