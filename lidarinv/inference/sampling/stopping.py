@@ -6,10 +6,12 @@ quantity (the coordinates, or the quantities the result reports: see
 posterior summary: a rank-normalised split R̂ of at most :attr:`StopRule.rhat_max`, a bulk
 and a tail effective sample size of at least :attr:`StopRule.ess_min`, and, on top, a
 chain after burn-in at least :attr:`StopRule.min_taus` times the quantity's
-autocorrelation time. ArviZ computes all three, each walker of the ensemble taken as a
-chain. The older rule, ``"tau"`` (``tau_multiple`` times emcee's τ of every coordinate,
-stable between checks), is kept for comparison (``studies/inversion_speed.py
---stop-rule``).
+autocorrelation time. ArviZ computes them: the ESS with each walker of the ensemble a
+chain, R̂ with four blocks of walkers as the chains (:func:`sub_ensemble_chains`). The
+rule judges only what the result reports: a coordinate the waveform cannot constrain may
+mix slowly without moving the answer. The older rule, ``"tau"`` (``tau_multiple`` times
+emcee's τ of every coordinate, stable between checks), is kept for comparison
+(``studies/inversion_speed.py --stop-rule``).
 """
 
 import warnings
