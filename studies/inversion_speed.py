@@ -342,12 +342,14 @@ def plot_time_vs_error(rows, variants, path):
     for k, name in enumerate(variants):
         for instrument, marker in markers.items():
             picked = [r for r in rows if r["variant"] == name and r["instrument"] == instrument]
-            error = [r.get("max_error_sd", r.get("max_error_vs_tau_sd", np.nan)) for r in picked]
-            kept = np.isfinite(error)
-            if np.any(kept):
-                ax.scatter(np.array([r["cpu_seconds"] for r in picked])[kept],
-                           np.array(error)[kept], c=f"C{k}", marker=marker,
-                           label=f"{name}, {instrument}")  # fmt: skip
+            for key, against, fill in (("max_error_sd", "long run", f"C{k}"),
+                                       ("max_error_vs_tau_sd", "tau rule", "none")):  # fmt: skip
+                error = np.array([r.get(key, np.nan) for r in picked], float)
+                kept = np.isfinite(error)
+                if np.any(kept):
+                    ax.scatter(np.array([r["cpu_seconds"] for r in picked])[kept], error[kept],
+                               facecolors=fill, edgecolors=f"C{k}", marker=marker,
+                               label=f"{name}, {instrument}, against the {against}")  # fmt: skip
     ax.axhline(0.2, color="k", lw=0.8, ls="--")
     ax.set_xscale("log")
     ax.set_xlabel("CPU time per shot (s, one core)")
