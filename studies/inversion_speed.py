@@ -258,7 +258,8 @@ def run_real(args, settings) -> dict:
     store = json.loads(store_path.read_text()) if store_path.exists() else {}
     rows = []
     folder = _output_folder(args.tag)
-    for obs, seeds in zip(shots, np.random.SeedSequence(args.seed).spawn(len(shots))):
+    seeds_of_shots = np.random.SeedSequence(args.seed).spawn(len(shots))
+    for obs, seeds in list(zip(shots, seeds_of_shots))[args.skip_shots :]:
         run_seed, reference_seed = seeds.spawn(2)
         reference = None
         if args.reference_steps:
@@ -468,6 +469,8 @@ def main():
     )  # fmt: skip
     parser.add_argument("--gedi-shots", nargs="+", help="GEDI shot numbers (with --data)")
     parser.add_argument("--lvis-shots", nargs="+", help="LVIS shot numbers (with --data)")
+    parser.add_argument("--skip-shots", type=int, default=0,
+                        help="leave out the first N shots named (each keeps its seed)")  # fmt: skip
     parser.add_argument("--stop-rule", nargs="+", default=["ess-rhat"], choices=STOP_RULES)
     parser.add_argument(
         "--min-taus", nargs="+", type=float, default=[SamplerSettings().min_taus],

@@ -64,8 +64,7 @@ def _ar1_walkers(rng, steps, walkers, tau):
 def test_the_rule_stops_later_on_a_bimodal_target_than_on_a_gaussian(seed):
     """Walkers start in both modes of the bimodal target (a rule cannot see a mode no walker
     found): R̂ of blocks of walkers, and the long τ of hops between the modes, keep it
-    sampling until the modes are mixed; the Gaussian, started at its mode, stops sooner
-    (about 500 steps against 800–1400 on these seeds)."""
+    sampling until the modes are mixed; the Gaussian, started at its mode, stops sooner."""
     plain = _run(gaussian, [0.0, 0.0], seed)
     twin = _run(bimodal, [[-SEPARATION, 0.0], [SEPARATION, 0.0]], seed)
     assert plain.converged and twin.converged, (plain.flags, twin.flags)
@@ -162,12 +161,12 @@ def test_tau_from_the_ess_is_the_ar1_tau_and_not_below_it_on_a_short_chain():
         ("rhat", 1.02, "R̂ 1.020 > 1.01"),
         ("ess_bulk", 399.0, "bulk ESS 399 < 400"),
         ("ess_tail", 120.0, "tail ESS 120 < 400"),
-        ("tau", 60.0, "chain 8.3 τ < 10 τ"),
+        ("tau", 60.0, "chain 8.3 τ < 20 τ"),
         ("rhat", np.nan, "R̂ nan"),
     ],
 )
 def test_each_threshold_names_the_quantity_and_the_shortfall(field, value, fails):
-    passing = {"ess_bulk": 900.0, "ess_tail": 800.0, "rhat": 1.004, "tau": 40.0}
+    passing = {"ess_bulk": 900.0, "ess_tail": 800.0, "rhat": 1.004, "tau": 20.0}
     rule = StopRule()
     assert rule.shortfalls({"rh98": passing}, kept_steps=500) == []
     (shortfall,) = rule.shortfalls({"rh98": {**passing, field: value}}, kept_steps=500)

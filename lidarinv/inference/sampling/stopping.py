@@ -79,12 +79,17 @@ class StopRule:
         trusted: walkers of one ensemble move together and are not independent chains,
         and an autocorrelation seen over a few τ misses its slow part. Chains cut at
         burn-in plus 5–10 τ of the reported quantities gave their 5/50/95 % quantiles
-        within 0.14–0.25 sd of long runs (issue 46); 10 asks for the safer end.
+        within 0.14–0.25 sd of long runs (issue 46), but τ estimated on such a chain
+        is itself low (by 1.3–3.6× on an LVIS shot, against a 20 000-step run): 20 τ
+        of the estimate is 6–15 τ of the long run's. Measured on two GEDI shots, the
+        quantiles at 5, 10 and 20 τ differed from the former 50 τ rule's by up to 0.58,
+        0.34 and 0.16 sd, and on a one-storey LVIS shot at 10 and 20 τ by 0.28 and 0.11
+        sd (``studies/inversion_speed.py --data``).
     """
 
     rhat_max: float = 1.01
     ess_min: float = 400.0
-    min_taus: float = 10.0
+    min_taus: float = 20.0
 
     def shortfalls(self, diagnostics: dict, kept_steps: int) -> list:
         """What keeps the run from stopping, quantity by quantity.
