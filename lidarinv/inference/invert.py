@@ -25,6 +25,7 @@ from .passes.model_error import describe_floor, shot_floor
 from .passes.realisations import realisation_covariance
 from .problem import InversionProblem, build_problem, fixed_discrepancy
 from .results.collect import collect_result
+from .results.reported import reported_monitor
 from .results.result import InversionResult
 from .sampling.sampler import run_sampler
 from .settings import AUTO, InversionSettings
@@ -230,6 +231,7 @@ def _invert(observation, settings, rng, progress, backend_path) -> InversionResu
         progress=progress,
         start=prepared.start,
         coordinates=problem.space.signature(),
+        monitor=reported_monitor(problem.space, problem.log_posterior.blob_names),
     )
     run.flags.extend(prepared.notes)
     if prepared.discrepancy_seconds is not None:

@@ -277,6 +277,8 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             "start_modes": int(run.start_modes),
             "seconds": dict(run.seconds),
             "tau_history": [[int(i), t] for i, t in run.tau_history],
+            # the monitored reported quantities: bulk and tail ESS, split R̂, τ (steps)
+            "quantities": run.quantities,
             **fit,
         },
         flags=list(run.flags) + post.likelihood.notes + _misfit_flags(fit),

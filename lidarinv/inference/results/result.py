@@ -35,7 +35,10 @@ class InversionResult:
     diagnostics : dict
         ``tau`` (steps) and ``ess`` per sampled coordinate (named in ``sampled``),
         ``acceptance``, ``n_steps``, ``n_walkers``, ``burn``, ``thin``, ``converged``,
-        ``map_log_prob``.
+        ``map_log_prob``; ``quantities``: per reported quantity the stopping rule
+        monitored, ``ess_bulk``, ``ess_tail``, ``rhat`` (rank-normalised split R̂) and
+        ``tau`` (steps) of the chain after burn-in
+        (:func:`..sampling.stopping.quantity_diagnostics`).
     flags : list of str
         Warnings (non-convergence, low acceptance, ...).
     profile_heights : array (m)
@@ -157,6 +160,7 @@ class InversionResult:
             f"acceptance {np.mean(d['acceptance']):.2f}, min ESS {np.min(d['ess']):.0f}, "
             f"{'converged' if self.converged else 'NOT CONVERGED'}"
         )
+        lines += _convergence_lines(d.get("quantities", {}))
         if "seconds" in d:
             seconds = d["seconds"]
             start = f"start (MAP search) {seconds['start']:.1f} s"
@@ -193,6 +197,7 @@ class InversionResult:
             "max_tau": float(np.max(self.diagnostics["tau"])),
             "predictive_p_value": float(self.diagnostics.get("predictive_p_value", np.nan)),
             "residual_scale": float(self.diagnostics.get("residual_scale", np.nan)),
+            **_convergence_extremes(self.diagnostics.get("quantities", {})),
             "cohorts": int((self.settings or {}).get("cohorts", 1)),
             "flags": "; ".join(self.flags),
         }
@@ -317,6 +322,33 @@ class InversionResult:
             if name not in handle:
                 raise ValueError(f"{path}: no posterior group {name!r} (have {list(handle)})")
             return cls.read(handle[name])
+
+
+def _convergence_lines(quantities) -> list:
+    """The summary's lines on the reported quantities' bulk and tail ESS, R̂ and τ."""
+    if not quantities:
+        return []
+    number = lambda v, form: "nan" if v is None else format(v, form)  # noqa: E731
+    cells = [
+        f"{name} {number(d['ess_bulk'], '.0f')}/{number(d['ess_tail'], '.0f')}/"
+        f"{number(d['rhat'], '.3f')}/{number(d['tau'], '.0f')}"
+        for name, d in quantities.items()
+    ]
+    return ["ESS bulk/tail, R̂, τ (steps) of the reported quantities: " + ", ".join(cells)]
+
+
+def _convergence_extremes(quantities) -> dict:
+    """The smallest bulk and tail ESS and the largest R̂ over the reported quantities."""
+
+    def extreme(key, pick):  # over the quantities where it is known
+        known = [d[key] for d in quantities.values() if d[key] is not None and np.isfinite(d[key])]
+        return float(pick(known)) if known else np.nan
+
+    return {
+        "min_ess_bulk": extreme("ess_bulk", min),
+        "min_ess_tail": extreme("ess_tail", min),
+        "max_rhat": extreme("rhat", max),
+    }
 
 
 def _stand_model_line(choice) -> str:

@@ -1,9 +1,10 @@
-"""The emcee run: the ensemble from its start to convergence by the autocorrelation time.
+"""The emcee run: the ensemble from its start until the quantities it reports converge.
 
 :func:`run_sampler` starts the walkers around the MAP (:mod:`.start`), or resumes a
 stored chain, and samples in chunks (:mod:`.ensemble`) with a mixture of moves
-(:mod:`.moves`) until the chain is ``tau_multiple`` integrated autocorrelation times
-long and τ stable; adaptive moves (:mod:`.moves.chain_t`) are fitted at a few early steps.
+(:mod:`.moves`) until the monitored quantities pass the stopping rule (:mod:`.stopping`:
+bulk and tail ESS, rank-normalised split R̂ and a chain of at least a few τ, by ArviZ);
+adaptive moves (:mod:`.moves.chain_t`) are fitted at a few early steps.
 """
 
 import time
@@ -17,6 +18,7 @@ from .ensemble import BatchedSampler, sample_in_chunks
 from .moves import MOVES
 from .moves.chain_t import fit_moves, record_fit, refit_on_resume, worth_refitting
 from .start import Mode, distinct_modes, find_map, initial_ball, laplace_covariance
+from .stopping import STOP_RULES, StopRule, coordinates_monitor, quantity_diagnostics
 
 
 @dataclass(frozen=True)
@@ -31,8 +33,17 @@ class SamplerSettings:
         walkers are added until the ``chain-t`` move, whose τ does not depend on them,
         sets it (``studies/inversion_speed.py --walkers`` compares counts).
     max_steps : int
-        Cap on steps; a run that hits it unconverged is flagged. Hard shots (tall
-        two-storey forests) keep a τ of hundreds of steps however many walkers there are.
+        Cap on steps; a run that hits it unconverged is flagged with the quantities that
+        failed the rule. Hard shots (tall two-storey forests) keep a τ of hundreds of
+        steps however many walkers there are.
+    stop_rule : str
+        A name from :data:`.stopping.STOP_RULES`: ``"ess-rhat"`` (default), every
+        monitored quantity with R̂ ≤ ``rhat_max``, bulk and tail ESS ≥ ``ess_min`` and a
+        chain after burn-in ≥ ``min_taus`` of its τ (:class:`.stopping.StopRule`, whose
+        docstring justifies the thresholds); ``"tau"``, the chain ``tau_multiple`` of
+        emcee's τ of every sampled coordinate, τ stable within ``tau_tolerance``.
+    rhat_max, ess_min, min_taus : float
+        Thresholds of the ``"ess-rhat"`` rule (:class:`.stopping.StopRule`).
     check_every : int
         Steps between convergence checks, at least (with τ of a few tens, 50 τ is soon
         reached, and sparser checks overshoot it).
@@ -41,17 +52,21 @@ class SamplerSettings:
         ``check_every`` (each check costs time in proportion to the chain's length, so
         checks grow sparser as it grows: the total stays in proportion to the chain).
     tau_multiple : float
-        The chain must be at least this many integrated autocorrelation times long.
+        ``"tau"`` rule: the chain must be at least this many integrated autocorrelation
+        times long.
     tau_tolerance : float
-        Largest relative change of τ between checks for τ to count as stable.
+        ``"tau"`` rule: largest relative change of τ between checks for τ to count as
+        stable.
     burn_taus : float
         Burn-in discarded before τ is estimated and from the results: this many times the
-        previous estimate of the largest τ, and never more than a third of the chain.
+        previous estimate of the largest τ (of the monitored quantities under
+        ``"ess-rhat"``), and never more than a third of the chain.
     tau_resolution : int
         Each check estimates τ on the chain thinned by the previous estimate of the
         smallest τ over this (emcee's ``thin``; τ comes back in steps): steps a fifth of
         τ apart carry the same information, at a fraction of the cost (a chain of τ =
-        30 steps gives τ within 1 % at a thinning of 1, 2 or 3).
+        30 steps gives τ within 1 % at a thinning of 1, 2 or 3). Under ``"ess-rhat"``
+        the result keeps the chain thinned by twice the largest τ over this.
     candidates : int
         Prior draws scored to pick the optimiser's starts.
     starts : int
@@ -92,6 +107,10 @@ class SamplerSettings:
 
     n_walkers: int = 128
     max_steps: int = 20_000
+    stop_rule: str = "ess-rhat"
+    rhat_max: float = StopRule.rhat_max
+    ess_min: float = StopRule.ess_min
+    min_taus: float = StopRule.min_taus
     check_every: int = 100
     check_growth: float = 0.1
     tau_multiple: float = 50.0
@@ -125,6 +144,8 @@ class SamplerRun:
     flags: list = field(default_factory=list)
     start_modes: int = 1  # basins the walkers started in (0 for a resumed chain)
     seconds: dict = field(default_factory=dict)  # "start" (MAP search, ball), "sampling"
+    # monitored quantity → {"ess_bulk", "ess_tail", "rhat", "tau"} after burn-in
+    quantities: dict = field(default_factory=dict)
 
 
 def _check_coordinates(backend, coordinates, resume):
@@ -190,14 +211,14 @@ def _may_converge(iteration, tau, settings: SamplerSettings, floor=0) -> bool:
     return kept > settings.tau_multiple * np.max(tau) / (1.0 + settings.tau_tolerance)
 
 
-def _show_target(bar, next_check, discard, tau, s) -> None:
+def _show_target(bar, next_check, discard, tau, max_steps, multiple) -> None:
     """Count the bar towards the steps convergence needs by the latest τ (burn-in plus
-    ``tau_multiple`` τ, at least the next check), within the step cap, rather than
-    towards the cap itself."""
+    ``multiple`` τ, at least the next check), within the step cap, rather than towards
+    the cap itself."""
     if bar.disable or not np.all(np.isfinite(tau)):
         return
-    needed = discard + s.tau_multiple * float(np.max(tau))
-    bar.total = int(min(s.max_steps, max(needed, next_check)))
+    needed = discard + multiple * float(np.max(tau))
+    bar.total = int(min(max_steps, max(needed, next_check)))
     bar.refresh()
 
 
@@ -210,6 +231,7 @@ def run_sampler(
     progress=False,
     start=None,
     coordinates=None,
+    monitor=None,
 ) -> SamplerRun:
     """Sample ``log_posterior`` (unbounded coordinates, emcee blob convention) to convergence.
 
@@ -233,23 +255,35 @@ def run_sampler(
         What the sampled coordinates are (see
         :meth:`lidarinv.inference.model.space.ParameterSpace.signature`); stored with an
         HDF5 backend's chain, and a chain stored under another is not resumed.
+    monitor : callable, optional
+        (chain (steps, walkers, ndim), blobs (steps, walkers, n_blobs) or None) → dict of
+        name → array (steps, walkers): the quantities the stopping rule judges (e.g.
+        :func:`lidarinv.inference.results.reported.reported_monitor`); default the sampled
+        coordinates (:func:`.stopping.coordinates_monitor`).
 
     Returns
     -------
     SamplerRun
-        The chain (unbounded coordinates), log-probabilities and blobs, τ and its
-        history, acceptance, burn-in and thinning, and flags.
+        The chain (unbounded coordinates), log-probabilities and blobs, τ per coordinate
+        and the history of the monitored τ, acceptance, burn-in and thinning, flags, and
+        the monitored quantities' ESS, R̂ and τ after burn-in.
 
     Raises
     ------
     ValueError
-        For unknown moves, a stored chain of another shape or other coordinates.
+        For unknown moves or stopping rules, a stored chain of another shape or other
+        coordinates.
 
     Notes
     -----
-    The run stops at the first check where the chain after burn-in is longer than
-    ``tau_multiple``·τ for every coordinate and τ changed by less than
-    ``tau_tolerance`` since the previous check (Foreman-Mackey et al. 2013; Sokal 1997).
+    ``"ess-rhat"`` (default): the run stops at the first check where every monitored
+    quantity of the chain after burn-in has a rank-normalised split R̂ ≤ ``rhat_max``,
+    bulk and tail ESS ≥ ``ess_min`` and a chain ≥ ``min_taus`` of its τ (Vehtari et al.
+    2021; :mod:`.stopping`); ``converged`` is that check's verdict on the very samples
+    the run returns after ``burn``. ``"tau"``: at the first check where the chain after
+    burn-in is longer than ``tau_multiple``·τ for every coordinate and τ changed by less
+    than ``tau_tolerance`` since the previous check (Foreman-Mackey et al. 2013; Sokal
+    1997).
 
     References
     ----------
@@ -264,6 +298,9 @@ def run_sampler(
     emcee documentation, "Autocorrelation analysis & convergence",
     https://emcee.readthedocs.io/en/stable/tutorials/autocorr/ (τ's estimate and the
     chain's length as a multiple of it).
+    Vehtari, A., Gelman, A., Simpson, D., Carpenter, B. & Bürkner, P.-C. (2021).
+    Rank-normalization, folding, and localization: an improved R̂ for assessing
+    convergence of MCMC. *Bayesian Analysis* 16, 667–718.
     """
     s = SamplerSettings() if settings is None else settings
     ndim = space.ndim
@@ -273,6 +310,9 @@ def run_sampler(
     unknown = sorted({name for name, _ in s.moves} - set(MOVES))
     if unknown:
         raise ValueError(f"unknown move(s) {unknown}; known: {sorted(MOVES)}")
+    if s.stop_rule not in _CHECKS:
+        raise ValueError(f"unknown stop_rule {s.stop_rule!r}; known: {sorted(_CHECKS)}")
+    monitor = coordinates_monitor(space.names) if monitor is None else monitor
     moves = [(MOVES[name](), weight) for name, weight in s.moves]
     resume = backend is not None and backend.initialized and backend.iteration > 0
     if resume and backend.shape != (n_walkers, ndim):
@@ -309,7 +349,8 @@ def run_sampler(
         state = initial_ball(log_prob, modes, s.ball, n_walkers, rng)
     seconds = {"start": time.perf_counter() - clock}
     clock = time.perf_counter()
-    history, tau, converged = [], np.full(ndim, np.inf), False
+    history, converged, shortfalls = [], False, []
+    tau = np.full(ndim if s.stop_rule == "tau" else 1, np.inf)
     bar = tqdm(total=s.max_steps, disable=not progress, desc="sampling", unit="step",
                dynamic_ncols=True)  # fmt: skip
     bar.update(sampler.iteration)
@@ -321,11 +362,12 @@ def run_sampler(
     floor = first_fit if adaptive and first_fit < s.max_steps else 0
     fits = fits if adaptive else []
     last_fit = refit_on_resume(sampler, adaptive, backend) if resume else 0
+    multiple = _run_length_in_taus(s)
     for _ in sample_in_chunks(sampler, state, max(s.max_steps - sampler.iteration, 0)):
         if fits and sampler.iteration == fits[0]:
             fits.pop(0)
             wanted = last_fit == 0 or worth_refitting(
-                sampler.iteration, tau, s.fit_fraction, s.tau_multiple, s.max_steps
+                sampler.iteration, tau, s.fit_fraction, multiple, s.max_steps
             )
             if wanted and fit_moves(sampler, adaptive):
                 last_fit = sampler.iteration  # the proposal is fixed until the next fit
@@ -334,49 +376,59 @@ def run_sampler(
             continue
         bar.update(sampler.iteration - bar.n)
         following = _following_check(sampler.iteration, s)
-        if following < s.max_steps and not _may_converge(following, tau, s, floor):
+        skippable = s.stop_rule == "tau" and not _may_converge(following, tau, s, floor)
+        if following < s.max_steps and skippable:
             next_check = following  # neither this check nor the next can end the run
             continue
         discard = burn_in(sampler.iteration, tau, s.burn_taus, floor)
         if sampler.iteration - discard < s.check_every:  # too few steps after burn-in
             next_check = following
             continue
-        thin = max(1, int(np.min(tau) / s.tau_resolution)) if np.all(np.isfinite(tau)) else 1
-        # NaN where a walker has not moved in the window (a τ not yet known)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            new_tau = sampler.get_autocorr_time(tol=0, quiet=True, discard=discard, thin=thin)
+        new_tau, converged, shortfalls, quantities = _CHECKS[s.stop_rule](
+            sampler, discard, tau, s, monitor
+        )
         history.append((sampler.iteration, new_tau.copy()))
-        stable = np.all(np.abs(new_tau - tau) < s.tau_tolerance * new_tau)
-        long_enough = np.all(sampler.iteration - discard > s.tau_multiple * new_tau)
         tau = new_tau
         bar.set_postfix(tau=f"{np.max(tau):.0f}")
-        if long_enough and stable and np.all(np.isfinite(tau)):
-            converged = True
+        if converged:
             break
         next_check = _following_check(sampler.iteration, s)
-        _show_target(bar, next_check, discard, tau, s)
+        _show_target(bar, next_check, discard, tau, s.max_steps, multiple)
     if converged:  # the bar ends full, not at a fraction of the step cap
         bar.total = sampler.iteration
         bar.set_postfix_str(f"converged, τ {np.max(tau):.0f}", refresh=False)
         bar.update(sampler.iteration - bar.n)
     bar.close()
     seconds["sampling"] = time.perf_counter() - clock
+    if s.stop_rule == "ess-rhat" and converged:
+        burn = discard  # the burn-in of the check that passed: what it judged is reported
+    else:
+        burn = burn_in(sampler.iteration, tau, s.burn_taus, floor)
+    if s.stop_rule == "ess-rhat":
+        # per coordinate, from ArviZ's bulk ESS as for the monitored quantities
+        coordinates = _diagnostics(sampler, burn, tau, s, coordinates_monitor(range(ndim)))
+        coordinate_tau = np.array([coordinates[i]["tau"] for i in range(ndim)])
+        if not converged:
+            quantities = _diagnostics(sampler, burn, tau, s, monitor)
+            shortfalls = _rule(s).shortfalls(quantities, sampler.iteration - burn)
+        tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else np.inf
+        # 2/5 τ apart at the default resolution: 50 draws a walker at 20 τ
+        thin = max(1, int(2 * tau_max / s.tau_resolution)) if np.isfinite(tau_max) else 1
+    else:
+        coordinate_tau = tau
+        quantities = _diagnostics(sampler, burn, tau, s, monitor)
+        tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else sampler.iteration / 10
+        thin = max(1, int(tau_max))
     if not converged:
-        flags.append(
-            f"not converged: {sampler.iteration} steps < {s.tau_multiple:g} τ "
-            f"(max τ = {np.max(tau):.0f}) or τ not stable"
-        )
+        flags.append(_not_converged(sampler.iteration, s, tau, shortfalls))
     acceptance = sampler.acceptance_fraction
     if np.any(acceptance < 0.05):
         flags.append(f"low acceptance in {int(np.sum(acceptance < 0.05))} walker(s)")
-    tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else sampler.iteration / 10
-    burn = burn_in(sampler.iteration, tau, s.burn_taus, floor)
-    thin = max(1, int(tau_max))
     return SamplerRun(
         chain=sampler.get_chain(),
         log_prob=sampler.get_log_prob(),
         blobs=sampler.get_blobs(),
-        tau=tau,
+        tau=coordinate_tau,
         tau_history=history,
         acceptance=acceptance,
         converged=converged,
@@ -385,4 +437,72 @@ def run_sampler(
         flags=flags,
         start_modes=len(modes),
         seconds=seconds,
+        quantities=quantities,
     )
+
+
+def _rule(s: SamplerSettings) -> StopRule:
+    return StopRule(s.rhat_max, s.ess_min, s.min_taus)
+
+
+def _run_length_in_taus(s: SamplerSettings) -> float:
+    """The run's expected length in τ of what it monitors: its rule's multiple, with the
+    burn-in under ``"ess-rhat"``."""
+    return s.tau_multiple if s.stop_rule == "tau" else s.min_taus + s.burn_taus
+
+
+def _diagnostics_thin(kept, tau, s: SamplerSettings) -> int:
+    """Thinning of a check's chain: the smallest τ over ``tau_resolution`` (steps that
+    close carry the same information), and at most about 500 draws a walker (a check
+    then costs about a tenth of a second for seven quantities of 128 walkers)."""
+    thin = max(1, int(np.min(tau) / s.tau_resolution)) if np.all(np.isfinite(tau)) else 1
+    return max(thin, kept // 500)
+
+
+def _diagnostics(sampler, discard, tau, s: SamplerSettings, monitor) -> dict:
+    """:func:`.stopping.quantity_diagnostics` of the monitored quantities after
+    ``discard`` steps."""
+    thin = _diagnostics_thin(sampler.iteration - discard, tau, s)
+    chain = sampler.get_chain(discard=discard, thin=thin)
+    blobs = sampler.get_blobs(discard=discard, thin=thin)
+    return quantity_diagnostics(monitor(chain, blobs), thin)
+
+
+def _check_ess_rhat(sampler, discard, tau, s: SamplerSettings, monitor):
+    """The ``"ess-rhat"`` check: the monitored quantities' τ, whether they pass, what
+    fails, and their diagnostics."""
+    quantities = _diagnostics(sampler, discard, tau, s, monitor)
+    new_tau = np.array([d["tau"] for d in quantities.values()])
+    new_tau = np.where(np.isnan(new_tau), np.inf, new_tau)
+    shortfalls = _rule(s).shortfalls(quantities, sampler.iteration - discard)
+    return new_tau, not shortfalls, shortfalls, quantities
+
+
+def _check_tau(sampler, discard, tau, s: SamplerSettings, monitor):
+    """The ``"tau"`` check: emcee's τ of every coordinate, ``tau_multiple`` of them
+    after burn-in and stable within ``tau_tolerance`` since the previous check."""
+    thin = max(1, int(np.min(tau) / s.tau_resolution)) if np.all(np.isfinite(tau)) else 1
+    # NaN where a walker has not moved in the window (a τ not yet known)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        new_tau = sampler.get_autocorr_time(tol=0, quiet=True, discard=discard, thin=thin)
+    stable = np.all(np.abs(new_tau - tau) < s.tau_tolerance * new_tau)
+    long_enough = np.all(sampler.iteration - discard > s.tau_multiple * new_tau)
+    converged = bool(long_enough and stable and np.all(np.isfinite(new_tau)))
+    return new_tau, converged, [], {}
+
+
+#: The check of each stopping rule: (sampler, discard, τ, settings, monitor) → (τ,
+#: converged, shortfalls, diagnostics of the monitored quantities).
+_CHECKS = {"ess-rhat": _check_ess_rhat, "tau": _check_tau}
+assert set(_CHECKS) == set(STOP_RULES)
+
+
+def _not_converged(steps, s: SamplerSettings, tau, shortfalls) -> str:
+    """The flag of a run stopped by the step cap: what failed, and by how much."""
+    if s.stop_rule == "tau":
+        return (
+            f"not converged: {steps} steps < {s.tau_multiple:g} τ "
+            f"(max τ = {np.max(tau):.0f}) or τ not stable"
+        )
+    failed = "; ".join(shortfalls) if shortfalls else "too few steps after burn-in to judge"
+    return f"not converged at the step cap ({steps} steps): {failed}"

@@ -70,8 +70,9 @@ def test_tau_from_the_thinned_chain_is_the_full_chains():
     # DE moves alone give τ ≈ 12 on the toy (the ensemble-t move, τ ≈ 2, would not thin)
     de_only = (("de", 0.7), ("de-snooker", 0.1), ("stretch", 0.2))
     coarse = SamplerSettings(
-        n_walkers=16, max_steps=3000, check_every=250, tau_resolution=3, moves=de_only
-    )
+        n_walkers=16, max_steps=3000, check_every=250, tau_resolution=3, moves=de_only,
+        stop_rule="tau",
+    )  # fmt: skip
     run = run_sampler(toy, space, rng, coarse)  # each check thins by about 4
     full = emcee.autocorr.integrated_time(run.chain[run.burn :], tol=0, quiet=True)
     assert np.min(run.tau) / 3 >= 3
@@ -296,6 +297,7 @@ def test_steps_between_chain_t_refits_are_kept(monkeypatch):
         check_every=100,
         moves=(("de", 0.5), ("chain-t", 0.5)),
         fit_steps=(20, 60),  # τ is unknown at both (the first check is at 100): both made
+        stop_rule="tau",  # its burn-in: 5 τ of every coordinate at the last check
     )
     run = run_sampler(toy, space, rng, settings)
     assert run.converged, run.flags
