@@ -198,7 +198,7 @@ def _following_check(iteration, settings: SamplerSettings) -> int:
     return iteration + max(settings.check_every, int(settings.check_growth * iteration))
 
 
-def _may_converge(iteration, tau, settings: SamplerSettings, floor=0) -> bool:
+def may_converge(iteration, tau, settings: SamplerSettings, floor=0) -> bool:
     """Whether a check at ``iteration`` could end the run, the previous check having
     estimated ``tau``. It cannot where the chain after burn-in is no longer than
     tau_multiple·max(τ)/(1 + tau_tolerance): a new τ short enough for that chain would
@@ -376,7 +376,7 @@ def run_sampler(
             continue
         bar.update(sampler.iteration - bar.n)
         following = _following_check(sampler.iteration, s)
-        skippable = s.stop_rule == "tau" and not _may_converge(following, tau, s, floor)
+        skippable = s.stop_rule == "tau" and not may_converge(following, tau, s, floor)
         if following < s.max_steps and skippable:
             next_check = following  # neither this check nor the next can end the run
             continue

@@ -15,7 +15,7 @@ from lidarinv.inference.model.stand import TOP_SDS
 from lidarinv.inference.sampling import SamplerSettings, burn_in, find_map, run_sampler
 from lidarinv.inference.sampling.ensemble import BatchedSampler, sample_in_chunks
 from lidarinv.inference.sampling.moves import MOVES
-from lidarinv.inference.sampling.sampler import _may_converge
+from lidarinv.inference.sampling.sampler import may_converge
 
 
 class LinearGaussianToy:
@@ -165,7 +165,7 @@ def test_a_skipped_check_could_not_have_ended_the_run(tau, spread, change, itera
     kept = iteration - burn_in(iteration, previous, settings.burn_taus, floor)
     assert kept <= iteration - floor
     if stable and np.all(kept > settings.tau_multiple * new):
-        assert _may_converge(iteration, previous, settings, floor)
+        assert may_converge(iteration, previous, settings, floor)
 
 
 def test_map_and_laplace_covariance_match_the_closed_form():
