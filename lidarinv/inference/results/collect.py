@@ -7,6 +7,7 @@ from lidarinv.observe import processing_settings
 
 from ..model.tallest_stem import disc_area
 from ..model.waveform import RH_LEVELS, relative_heights
+from ..passes.ambiguity import describe_modes, ground_modes
 from ..passes.realisations import footprint_cover
 from ..posterior import BLOB_NAMES, BLOB_UNITS
 from ..problem import InversionProblem
@@ -22,6 +23,32 @@ _BAND_SAMPLES = 400
 FOOTPRINT_TOP = "footprint_top_height"
 #: Derived quantity: the footprint's own crown cover, where settings ask for its draws.
 FOOTPRINT_COVER = "footprint_cover"
+#: Derived quantity: per sample, the probability that no stem stands within the footprint;
+#: its posterior mean is the probability that the footprint holds no tree.
+FOOTPRINT_NO_STEM = "footprint_no_stem_probability"
+
+
+def footprint_no_stem(problem: InversionProblem, density_per_ha) -> np.ndarray:
+    """The probability that the footprint's disc holds no stem, per posterior sample.
+
+    Parameters
+    ----------
+    problem : InversionProblem
+    density_per_ha : array (n,) (stems/ha)
+
+    Returns
+    -------
+    array (n,)
+        exp(−λ·A), λ the Poisson stand's density (stems/m²) and A the area of the
+        footprint's 1/e² disc (m²), the disc :func:`footprint_top_height` draws its stems
+        on; 0 where the posterior conditions on the tallest stem (that stem stands).
+        Averaged over the posterior it is P(no tree in the footprint | y), the weight of
+        the zeros of :func:`footprint_top_height`.
+    """
+    if problem.log_posterior.mapping.conditioned:
+        return np.zeros(np.shape(density_per_ha))
+    area = disc_area(problem.instrument.footprint_sigma_m)
+    return np.exp(-np.asarray(density_per_ha, float) * 1e-4 * area)
 
 
 def footprint_top_height(problem: InversionProblem, x, density_per_ha, rng) -> np.ndarray:
@@ -209,6 +236,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     blobs = _flat(run.blobs, run)
     derived = {name: blobs[:, i] for i, name in enumerate(BLOB_NAMES)}
     derived[FOOTPRINT_TOP] = footprint_top_height(problem, x, derived["density"], rng)
+    derived[FOOTPRINT_NO_STEM] = footprint_no_stem(problem, derived["density"])
     drawn, heights = sample_draws(problem, x, rng)  # e.g. the gain, from p(gain | θ, y)
     derived.update(heights)
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
@@ -221,7 +249,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     fit = fit_statistics(
         terms.log_likelihood[good], problem.window.samples, replicated, rep_mean, rep_variance
     )
-    units = {FOOTPRINT_TOP: "m"}
+    units = {FOOTPRINT_TOP: "m", FOOTPRINT_NO_STEM: "1"}
     if problem.settings.footprint_cover_draws:  # the last of the rng's uses: the rest as without
         derived[FOOTPRINT_COVER] = footprint_cover(
             post, problem.instrument, x, rng, problem.settings.footprint_cover_draws
@@ -233,6 +261,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     n_kept = run.chain.shape[0] - run.burn
     ess = n_kept * run.chain.shape[1] / np.where(np.isfinite(run.tau), run.tau, np.inf)
     a = problem.analysis
+    modes = ground_modes(space, x)  # the evidence for each ground of a two-ground prior
     truth = {
         k: float(v)
         for k, v in problem.observation.truth.items()
@@ -267,8 +296,12 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             "seconds": dict(run.seconds),
             "tau_history": [[int(i), t] for i, t in run.tau_history],
             **fit,
+            **({} if modes is None else {"ground_modes": modes}),
         },
-        flags=list(run.flags) + post.likelihood.notes + _misfit_flags(fit),
+        flags=list(run.flags)
+        + post.likelihood.notes
+        + _misfit_flags(fit)
+        + [flag for flag in [describe_modes(modes)] if flag],
         profile_heights=profile_heights,
         profile=np.percentile(profile, QUANTILES, axis=0),
         axis=problem.window.axis,
