@@ -135,8 +135,9 @@ def _canopy_lines(result) -> list:
 
 
 def figure_names(shot_id) -> list:
-    """The files ``--plots`` writes for a shot (:func:`lidarinv.inference.plots.save_plots`)."""
-    from lidarinv.inference.plots import PLOTS
+    """The files ``--plots`` writes for a shot (:func:`lidarinv.inference.results.plots.
+    save_plots`)."""
+    from lidarinv.inference.results.plots import PLOTS
 
     return [f"shot_{shot_id}_{name}.png" for name in PLOTS]
 
