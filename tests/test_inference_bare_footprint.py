@@ -4,13 +4,13 @@ given that it holds one."""
 
 import numpy as np
 import pytest
+from tiny_results import tiny_result
 
 from lidarinv.cli.invert import headline
 from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, build_problem
 from lidarinv.inference.model.tallest_stem import disc_area
 from lidarinv.inference.results.collect import footprint_no_stem, footprint_top_height
-from tiny_results import tiny_result
 
 
 @pytest.fixture(scope="module")

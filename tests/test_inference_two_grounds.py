@@ -70,5 +70,7 @@ def test_an_ambiguous_shot_takes_both_grounds_into_its_prior(shot):
     assert prior.mean == pytest.approx(shot.ground)
     assert prior.alt_mean == pytest.approx(shot.ground - 6.0)  # registered as the chosen
     assert prior.lower < prior.alt_mean - 3 * prior.alt_sd and prior.upper >= plain.upper
-    density = np.exp(prior.exact_log_pdf(np.array([shot.ground, shot.ground - 6.0, shot.ground - 3.0])))
+    density = np.exp(
+        prior.exact_log_pdf(np.array([shot.ground, shot.ground - 6.0, shot.ground - 3.0]))
+    )
     assert density[0] > 100 * density[2] and density[1] > 100 * density[2]
