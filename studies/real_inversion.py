@@ -132,6 +132,8 @@ def invert_one(job):
     needed = result.diagnostics.get("model_error_needed")
     record["model_error_needed"] = float("inf") if needed is None else float(needed)
     record["misfit"] = any(f.startswith(MISFIT_FLAG) for f in result.flags)
+    if "ground_modes" in result.diagnostics:  # the evidence for each of two grounds
+        record["ground_modes"] = result.diagnostics["ground_modes"]
     canopy = result.footprint_canopy()
     if canopy is not None:
         record["no_tree_probability"] = canopy["no_tree_probability"]
@@ -261,13 +263,15 @@ def statistics(records, instrument) -> dict:
 
 
 def _contradictions(done) -> int:
-    """Shots without a flag whose posterior median contradicts itself: RH50 below the
-    ground, or no cover under an RH98 above 5 m."""
+    """Shots without a flag whose posterior median contradicts itself in the product's
+    convention (the model waveform's where a record lacks it): RH50 below the ground, or
+    no cover under an RH98 above 5 m."""
     count = 0
     for r in done:
-        p = r["posterior"]
-        rh50 = p.get("rh50", [np.nan] * 3)[1]
-        bare = p.get("cover", [np.nan] * 3)[1] == 0.0 and p["rh98"][1] > 5.0
+        p, missing = r["posterior"], [np.nan] * 3
+        rh50 = p.get("rh50_product", p.get("rh50", missing))[1]
+        rh98 = p.get("rh98_product", p["rh98"])[1]
+        bare = p.get("cover", missing)[1] == 0.0 and rh98 > 5.0
         count += int((rh50 < 0.0 or bare) and not r["flags"])
     return count
 
