@@ -74,3 +74,19 @@ def test_an_ambiguous_shot_takes_both_grounds_into_its_prior(shot):
         prior.exact_log_pdf(np.array([shot.ground, shot.ground - 6.0, shot.ground - 3.0]))
     )
     assert density[0] > 100 * density[2] and density[1] > 100 * density[2]
+
+
+def test_the_window_reaches_below_the_alternative_ground(shot, monkeypatch):
+    """The likelihood must see the lower return for the data to weigh it."""
+    import lidarinv.inference.shot as shot_module
+
+    low, _ = shot.pulse_range
+    # the alternative's pulse starts a metre below where the plain window starts
+    depth = shot.ground - (shot.window.axis[0] - 1.0 - low)
+    assert shot.observation.axis[0] < shot.window.axis[0] - 3.0  # the record reaches there
+    flagged = _ambiguous(shot, depth).analysis
+    monkeypatch.setattr(shot_module, "analyse", lambda *args, **kwargs: flagged)
+    widened = Shot.from_observation(shot.observation, InversionSettings())
+    assert widened.window.axis[0] < widened.alternative_ground()[0] + low
+    assert widened.window.axis[0] < shot.window.axis[0] - 1.0
+    assert widened.window.axis[-1] == shot.window.axis[-1]
