@@ -126,6 +126,17 @@ def _canopy_lines(result) -> list:
     ]
     if p_none >= 0.5:
         lines[0] += ": the footprint more likely holds no tree"
+    p_bare = canopy["bare_probability"]
+    if np.isfinite(p_bare):
+        lines.append(
+            f"  {'P(no canopy return)':<28}{p_bare:8.2f}    the footprint's waveform shows "
+            "nothing above a bare ground's return (its RH98 within the ground return's)"
+        )
+        if p_bare >= 0.5:
+            lines[-1] += (
+                ": the footprint more likely holds no canopy the waveform sees; the canopy "
+                "height is that of stems it cannot see"
+            )
     if np.isfinite(given["median"]):
         lines.append(
             f"  {'canopy height if any':<28}{given['median']:8.3g} m  [{given['p05']:.3g}, "

@@ -145,6 +145,9 @@ class InversionResult:
         dict or None
             ``no_tree_probability``: the posterior mean of
             ``footprint_no_stem_probability``, P(no stem within the footprint's disc | y);
+            ``bare_probability``: the posterior mean of ``footprint_bare``, P(the
+            footprint's waveform shows nothing above its ground return | y) (NaN where
+            not drawn);
             ``height_given_canopy``: quantiles (as :meth:`summary`'s rows, m) of the
             footprint's tallest stem among the samples whose draw holds one (NaN where
             none does). None for a result without these quantities.
@@ -155,8 +158,11 @@ class InversionResult:
         top = self.column("footprint_top_height")
         standing = top[np.isfinite(top) & (top > 0.0)]
         q = np.percentile(standing, QUANTILES) if standing.size else np.full(5, np.nan)
+        bare = self.derived.get("footprint_bare", np.array([np.nan]))
+        bare = bare[np.isfinite(bare)]
         return {
             "no_tree_probability": float(np.mean(no_stem[np.isfinite(no_stem)])),
+            "bare_probability": float(np.mean(bare)) if bare.size else float("nan"),
             "height_given_canopy": {label: float(v) for label, v in zip(_LABELS, q)},
         }
 
@@ -224,6 +230,7 @@ class InversionResult:
         canopy = self.footprint_canopy()
         if canopy is not None:
             row["footprint_no_tree_probability"] = canopy["no_tree_probability"]
+            row["footprint_bare_probability"] = canopy["bare_probability"]
             given = canopy["height_given_canopy"]
             row.update({f"footprint_height_given_canopy_{k}": given[k] for k in _LABELS})
         for name, stats in self.summary().items():
