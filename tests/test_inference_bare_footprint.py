@@ -11,11 +11,8 @@ from lidarinv.cli.invert import headline
 from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, build_problem
 from lidarinv.inference.model.tallest_stem import disc_area
-from lidarinv.inference.results.collect import (
-    bare_ground_rh98,
-    footprint_no_stem,
-    footprint_top_height,
-)
+from lidarinv.inference.results.collect import footprint_top_height
+from lidarinv.inference.results.footprint import bare_ground_rh98, footprint_no_stem
 
 
 @pytest.fixture(scope="module")
