@@ -130,7 +130,7 @@ def invert_one(job):
     record["residual_scale"] = result.diagnostics.get("residual_scale", np.nan)
     record["instrument_floor"] = float(result.diagnostics.get("instrument_floor", np.nan))
     needed = result.diagnostics.get("model_error_needed")
-    record["model_error_needed"] = float("inf") if needed is None else float(needed)
+    record["model_error_needed"] = float("nan") if needed is None else float(needed)
     record["misfit"] = any(f.startswith(MISFIT_FLAG) for f in result.flags)
     if "ground_modes" in result.diagnostics:  # the evidence for each of two grounds
         record["ground_modes"] = result.diagnostics["ground_modes"]
@@ -223,7 +223,14 @@ def statistics(records, instrument) -> dict:
         "misfit_flagged": int(sum(r.get("predictive_p_value", 1.0) < 0.01 for r in done)),
         # the fit needs a model error above the ceiling, or fails its predictive check
         "misfit_any_flag": int(sum(bool(r.get("misfit")) for r in done)),
-        "model_error_above_ceiling": int(sum(r.get("model_error_needed", 0.0) > 0.5 for r in done)),
+        # where the error was sized at all (not on a window with censored samples)
+        "model_error_above_ceiling": int(
+            sum(
+                r.get("model_error_needed", 0.0) > 0.5
+                and np.isfinite(r.get("instrument_floor", np.nan))
+                for r in done
+            )
+        ),
         "contradictions_unflagged": _contradictions(done),
         "model_error_raised": int(
             sum(any(f.startswith(MODEL_ERROR_FLAG) for f in r["flags"]) for r in done)
