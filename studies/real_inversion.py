@@ -7,7 +7,12 @@ often the product lies inside the 90 % interval (and inside it widened by 1 m, t
 of the products' own published errors: L2A ground RMSE about 1.4 m), convergence and wall
 time. Writes ``studies/output/real_inversion{tag}/`` with ``summary.json``, ``shots.json``
 (one record a shot), ``rh98.png`` (posterior RH98 against the product's, with intervals)
-and ``predictive_*.png`` (typical, worst and multi-layer shots). ``shots.json`` is
+and ``predictive_*.png`` (typical, worst and multi-layer shots). LVIS shots are also
+reported per flight line (the ``LFID`` the file gives each shot), so that the tall line
+stands apart; every LVIS shot's fit is drawn as it finishes (``shots/shot_<id>.png``:
+waveform, both ground candidates of the analysis, the product's ground, the fit and its
+residuals), and the summary names each line's worst shots and copies their figures
+(``worst_<lfid>_<rank>.png``). ``shots.json`` is
 rewritten after every shot, so a run stopped early keeps what it finished;
 ``--skip-shots`` and ``--max-shots`` split a file's shots into runs that ``--combine``
 joins.
@@ -27,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lidarinv.inference.passes.model_error import MODEL_ERROR_FLAG
+from lidarinv.inference.passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
 from lidarinv.io import iter_observations, read_gedi_l2a, read_gedi_l2b, read_lvis_l2
 from lidarinv.observe import Observation, analyse
 
@@ -50,6 +55,8 @@ QUANTITIES = {
 #: Margin (m) by which a height interval is widened before asking if it holds the
 #: product: the products' own errors are of that size.
 WIDENING_M = 1.0
+#: Worst shots (by |ground − product|) of each LVIS flight line named in the summary.
+WORST_SHOTS = 4
 
 
 def _files(data: str) -> dict:
@@ -82,7 +89,8 @@ def products(files) -> dict:
 
 def invert_one(job):
     """One shot: its posterior summary against the product, or why it failed."""
-    obs, product, max_steps, seed, priors, cohorts = job
+    obs, product, max_steps, seed, priors, cohorts = job[:6]
+    figures = job[6] if len(job) > 6 else None
     from dataclasses import replace
 
     from lidarinv.inference import InversionSettings, invert_shot
@@ -93,12 +101,15 @@ def invert_one(job):
     if cohorts is not None:
         settings = replace(settings, cohorts=cohorts if cohorts == "auto" else int(cohorts))
     record = {"shot": obs.shot_id, "instrument": obs.instrument, "product": product}
+    if "lfid" in obs.metadata:  # the LVIS flight line, as the file gives it
+        record["lfid"] = str(obs.metadata["lfid"])
     analysis = analyse(obs)
     offset = convention_offset(obs, analysis)
     record["product"] = {**product, "rh98_model_convention": product["rh98"] + offset}
     record["analysis"] = {"status": analysis.status, "ground": analysis.ground,
                           "rh98": None if analysis.rh is None else float(analysis.rh[98]),
-                          "n_modes": analysis.n_modes, "flags": analysis.flags}  # fmt: skip
+                          "n_modes": analysis.n_modes, "flags": analysis.flags,
+                          "ground_alternative": analysis.ground_alternative}  # fmt: skip
     start, cpu = time.perf_counter(), time.process_time()
     try:
         result = invert_shot(obs, settings, rng=np.random.default_rng(seed))
@@ -118,14 +129,53 @@ def invert_one(job):
     record["predictive_p_value"] = result.diagnostics["predictive_p_value"]
     record["residual_scale"] = result.diagnostics.get("residual_scale", np.nan)
     record["instrument_floor"] = float(result.diagnostics.get("instrument_floor", np.nan))
+    needed = result.diagnostics.get("model_error_needed")
+    record["model_error_needed"] = float("nan") if needed is None else float(needed)
+    record["misfit"] = any(f.startswith(MISFIT_FLAG) for f in result.flags)
+    if "ground_modes" in result.diagnostics:  # the evidence for each of two grounds
+        record["ground_modes"] = result.diagnostics["ground_modes"]
+    canopy = result.footprint_canopy()
+    if canopy is not None:
+        record["no_tree_probability"] = canopy["no_tree_probability"]
     record["posterior"] = {}
     names = {"ground": "ground_elevation", "rh98": "rh98", "rh98_product": "rh98_product",
-             "rh98_footprint": "rh98_footprint", "cover": _cover_name(result)}  # fmt: skip
+             "rh98_footprint": "rh98_footprint", "cover": _cover_name(result),
+             "rh50": "rh50", "rh50_product": "rh50_product",
+             "canopy_height": "footprint_top_height"}  # fmt: skip
     for quantity, name in names.items():
         values = result.column(name) if name else np.array([])
         q = np.percentile(values, (5, 50, 95)) if values.size else np.full(3, np.nan)
         record["posterior"][quantity] = [float(v) for v in q]
+    if figures is not None and record.get("lfid") is not None:
+        shot_figure(result, record, figures / f"shot_{obs.shot_id}.png")
     return record, result
+
+
+def shot_figure(result, record, path) -> None:
+    """The fit and its residuals (:func:`lidarinv.inference.results.plots.predictive_plot`)
+    with the analysis's ground candidates, the posterior's ground and the product's."""
+    from lidarinv.inference.results.plots import predictive_plot
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig = predictive_plot(result, None)
+    analysis = record["analysis"]
+    lines = (
+        (analysis["ground"], "analysis ground", "tab:green", "-"),
+        (analysis.get("ground_alternative", np.nan), "alternative ground", "tab:olive", ":"),
+        (record["posterior"]["ground"][1], "posterior ground (median)", "tab:purple", "--"),
+        (record["product"]["ground"], "product ground", "k", "-."),
+    )
+    for ax in fig.axes:
+        for height, label, colour, style in lines:
+            if height is not None and np.isfinite(height):
+                ax.axhline(height, color=colour, ls=style, lw=0.9, label=label)
+    fig.axes[0].legend(fontsize=6, loc="upper right")
+    fig.suptitle(f"shot {result.shot_id} (line {record.get('lfid')}): fit, residuals, grounds",
+                 fontsize=10)  # fmt: skip
+    fig.savefig(path, dpi=80)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
 
 
 def convention_offset(obs, analysis) -> float:
@@ -171,6 +221,17 @@ def statistics(records, instrument) -> dict:
         # among the shots whose run recorded the gain (None where none did)
         "two_cohorts_bic_over_10": _count_over(done, "bic_two_cohorts_gain", 10.0),
         "misfit_flagged": int(sum(r.get("predictive_p_value", 1.0) < 0.01 for r in done)),
+        # the fit needs a model error above the ceiling, or fails its predictive check
+        "misfit_any_flag": int(sum(bool(r.get("misfit")) for r in done)),
+        # where the error was sized at all (not on a window with censored samples)
+        "model_error_above_ceiling": int(
+            sum(
+                r.get("model_error_needed", 0.0) > 0.5
+                and np.isfinite(r.get("instrument_floor", np.nan))
+                for r in done
+            )
+        ),
+        "contradictions_unflagged": _contradictions(done),
         "model_error_raised": int(
             sum(any(f.startswith(MODEL_ERROR_FLAG) for f in r["flags"]) for r in done)
         ),
@@ -206,6 +267,53 @@ def statistics(records, instrument) -> dict:
             out[q]["off_by_3m"] = len(far)
             out[q]["off_by_3m_unflagged"] = sum(not r["flags"] for r in far)
     return out
+
+
+def _contradictions(done) -> int:
+    """Shots without a flag whose posterior median contradicts itself in the product's
+    convention (the model waveform's where a record lacks it): RH50 below the ground, or
+    no cover under an RH98 above 5 m."""
+    count = 0
+    for r in done:
+        p, missing = r["posterior"], [np.nan] * 3
+        rh50 = p.get("rh50_product", p.get("rh50", missing))[1]
+        rh98 = p.get("rh98_product", p["rh98"])[1]
+        bare = p.get("cover", missing)[1] == 0.0 and rh98 > 5.0
+        count += int((rh50 < 0.0 or bare) and not r["flags"])
+    return count
+
+
+def flight_lines(records, out=None) -> dict:
+    """The LVIS statistics per flight line (the file's LFID), with each line's worst
+    shots; their figures copied to ``out`` where they were drawn."""
+    import shutil
+
+    lines = {}
+    for lfid in sorted({r["lfid"] for r in records if r.get("lfid") is not None}):
+        members = [r for r in records if r.get("lfid") == lfid]
+        stats = statistics(members, "lvis")
+        rh98 = [r["product"]["rh98"] for r in members if np.isfinite(r["product"]["rh98"])]
+        stats["product_rh98_median"] = float(np.median(rh98)) if rh98 else None
+        done = [r for r in members if "posterior" in r]
+        if done:
+            ground = [r["posterior"]["ground"][1] - r["product"]["ground"] for r in done]
+            near = [abs(d) <= 1.0 or bool(r["flags"]) for d, r in zip(ground, done)]
+            stats["ground_within_1m_or_flagged"] = float(np.mean(near))
+        order = sorted(
+            done, key=lambda r: -abs(r["posterior"]["ground"][1] - r["product"]["ground"])
+        )
+        worst = []
+        for rank, r in enumerate(order[:WORST_SHOTS]):
+            entry = {"shot": r["shot"], "ground_error": r["posterior"]["ground"][1]
+                     - r["product"]["ground"], "flags": r["flags"]}  # fmt: skip
+            figure = None if out is None else out / "shots" / f"shot_{r['shot']}.png"
+            if figure is not None and figure.exists():
+                entry["figure"] = f"worst_{lfid}_{rank + 1}.png"
+                shutil.copy(figure, out / entry["figure"])
+            worst.append(entry)
+        stats["worst"] = worst
+        lines[lfid] = stats
+    return lines
 
 
 def rh98_figure(records, path):
@@ -280,7 +388,15 @@ def main(argv=None):
         seeds = np.random.SeedSequence(args.seed).spawn(len(shots))
         end = args.skip_shots + args.max_shots if args.max_shots else len(shots)
         jobs += [
-            (o, wanted[(instrument, o.shot_id)], args.max_steps, s, args.priors, args.cohorts)
+            (
+                o,
+                wanted[(instrument, o.shot_id)],
+                args.max_steps,
+                s,
+                args.priors,
+                args.cohorts,
+                out / "shots",
+            )
             for o, s in list(zip(shots, seeds))[args.skip_shots : end]
         ]
     print(f"{len(jobs)} shots to invert")
@@ -299,6 +415,7 @@ def main(argv=None):
         "priors": None if args.priors is None else args.priors.read_text(),
         "cohorts": args.cohorts,
         **{i: statistics(records, i) for i in args.instrument},
+        "lvis_flight_lines": flight_lines(records, out),
     }
     _write(out, summary, records)
     _predictive_figures(records, results, out)
@@ -330,6 +447,12 @@ def combine(tags, out) -> None:
     records = list(by_shot.values())
     for instrument in sorted({r["instrument"] for r in records}):
         summary[instrument] = statistics(records, instrument)
+    for tag in tags:  # the per-shot figures, for the flight lines' worst shots
+        for figure in (HERE / "output" / f"real_inversion{tag}" / "shots").glob("*.png"):
+            if figure.parent.parent.resolve() != out.resolve():
+                (out / "shots").mkdir(exist_ok=True)
+                shutil.copy(figure, out / "shots" / figure.name)
+    summary["lvis_flight_lines"] = flight_lines(records, out)
     _write(out, summary, records)
     print(f"wrote {out}")
 

@@ -44,6 +44,19 @@ def add_arguments(parser) -> None:
         "(errors of the shot's data repeat and are not retried)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    terrain = parser.add_mutually_exclusive_group()
+    terrain.add_argument(
+        "--no-terrain",
+        action="store_true",
+        help="do not check each shot's ground against its track neighbours' (by default a "
+        "ground that leaves them is flagged 'terrain outlier', as lidarinv metrics does)",
+    )
+    terrain.add_argument(
+        "--terrain-prior",
+        action="store_true",
+        help="take each shot's ground prior from its track neighbours' robust fit instead "
+        "of its own ground peak (shots are then no longer independent)",
+    )
     parser.add_argument(
         "--invert",
         metavar="MODULE:FUNCTION",
@@ -77,6 +90,21 @@ def _invert_function(spec):
         return getattr(importlib.import_module(module_name), name)
     except (ImportError, AttributeError) as error:
         raise ValueError(f"--invert {spec}: {error}") from error
+
+
+def _with_terrain(args, described, settings, invert):
+    """The inversion with the file's terrain context (:mod:`lidarinv.batch.terrain`): each
+    result carries its shot's terrain flag, and with ``--terrain-prior`` its ground prior
+    is the terrain fit's."""
+    from lidarinv.batch.terrain import WithTerrain, terrain_context
+
+    observations = iter_observations(args.file, described.format, beams=args.beam)
+    instrument = None if settings is None else settings.instrument
+    processing = None if settings is None else settings.processing
+    context = terrain_context(args.file, observations, instrument, processing)
+    if context.flags:
+        print(f"# terrain outlier: {len(context.flags)} shot(s): {', '.join(context.flags)}")
+    return WithTerrain(invert, context, ground_prior=args.terrain_prior)
 
 
 def _check_outputs(args) -> None:
@@ -150,6 +178,8 @@ def run(args) -> int:
     if override:
         print(f"lidarinv batch: warning: {override}", file=sys.stderr)
         invert = WithFlag(invert, override)
+    if not args.no_terrain:
+        invert = _with_terrain(args, described, settings, invert)
     items = iter_observations(args.file, described.format, beams=args.beam)
     selected = None
     if args.shot:

@@ -102,6 +102,7 @@ def headline(result) -> str:
             f"  {label:<28}{row['median']:8.3g}{units}  [{row['p05']:.3g}, {row['p95']:.3g}]"
             f"  {meaning}"
         )
+    lines += _canopy_lines(result)
     if "top_height" in summary:
         row = summary["top_height"]
         lines.append(
@@ -110,6 +111,38 @@ def headline(result) -> str:
             "(mean + 2 sd), which one footprint rarely reaches"
         )
     return "\n".join(lines)
+
+
+def _canopy_lines(result) -> list:
+    """Whether the footprint holds a tree at all, and its height if it does: a bare
+    footprint's canopy height is the zero of most draws, not the top of a stand."""
+    canopy = result.footprint_canopy()
+    if canopy is None:
+        return []
+    p_none, given = canopy["no_tree_probability"], canopy["height_given_canopy"]
+    lines = [
+        f"  {'P(no tree in footprint)':<28}{p_none:8.2f}    no stem within the footprint's "
+        "1/e² radius (Poisson stand: exp(−density × disc area))"
+    ]
+    if p_none >= 0.5:
+        lines[0] += ": the footprint more likely holds no tree"
+    p_bare = canopy["bare_probability"]
+    if np.isfinite(p_bare):
+        lines.append(
+            f"  {'P(no canopy return)':<28}{p_bare:8.2f}    the footprint's waveform shows "
+            "nothing above a bare ground's return (its RH98 within the ground return's)"
+        )
+        if p_bare >= 0.5:
+            lines[-1] += (
+                ": the footprint more likely holds no canopy the waveform sees; the canopy "
+                "height is that of stems it cannot see"
+            )
+    if np.isfinite(given["median"]):
+        lines.append(
+            f"  {'canopy height if any':<28}{given['median']:8.3g} m  [{given['p05']:.3g}, "
+            f"{given['p95']:.3g}]  the tallest stem, given the footprint holds one"
+        )
+    return lines
 
 
 def figure_names(shot_id) -> list:

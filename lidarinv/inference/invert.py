@@ -21,7 +21,14 @@ from .passes.ambiguity import competing_grounds, pulse_width_m
 from .passes.ambiguity import describe as describe_competing
 from .passes.cohorts import CohortChoice, choose_cohorts
 from .passes.hidden_ground import hidden_ground_note
-from .passes.model_error import describe_floor, shot_floor
+from .passes.model_error import (
+    MODEL_ERROR_CEILING,
+    bounded_floor,
+    describe_floor,
+    describe_misfit,
+    exceeds_ceiling,
+    shot_floor,
+)
 from .passes.realisations import realisation_covariance
 from .problem import InversionProblem, build_problem, fixed_discrepancy
 from .results.collect import collect_result
@@ -119,7 +126,10 @@ class Preparation:
     discrepancy_seconds : float or None (s)
         The discrepancy simulation's wall time, where it ran.
     instrument_floor : float or None
-        η, the instrument model's error (:mod:`.model_error`), where it was sized.
+        η, the instrument model's error (:mod:`.model_error`), where it was sized: at
+        most its ceiling.
+    model_error_needed : float or None
+        The η the pilot's residuals need, without the ceiling (inf for more than any).
     competing_grounds : list of float or None (m)
         The MAP's ground first, then other optima's, where they explain the shot with the
         ground elsewhere (:func:`.ambiguity.competing_grounds`).
@@ -131,6 +141,7 @@ class Preparation:
     cohorts: CohortChoice | None = None
     discrepancy_seconds: float | None = None
     instrument_floor: float | None = None
+    model_error_needed: float | None = None
     competing_grounds: list | None = None
 
     def diagnostics(self) -> dict:
@@ -139,6 +150,8 @@ class Preparation:
             "cohorts": None if self.cohorts is None else self.cohorts.describe(),
             "competing_grounds": self.competing_grounds,
             "instrument_floor": self.instrument_floor,
+            "model_error_needed": self.model_error_needed,
+            "model_error_ceiling": None if self.instrument_floor is None else MODEL_ERROR_CEILING,
         }
         return {key: value for key, value in found.items() if value is not None}
 
@@ -191,11 +204,14 @@ def prepare_problem(
             if least > 0:  # the instrument model's own error, on the diagonal
                 unit = fixed_discrepancy(problem.shot, replace(settings, discrepancy=1.0))
                 simulated_only = likelihood.with_fixed_discrepancy(covariance)
-                floor = shot_floor(pilot, simulated_only, estimate, unit, least)
+                needed = shot_floor(pilot, simulated_only, estimate, unit, least)
+                floor = bounded_floor(needed, least)
                 covariance = covariance + floor**2 * np.diag(unit)
-                prepared.instrument_floor = floor
+                prepared.instrument_floor, prepared.model_error_needed = floor, needed
                 if floor > least:
                     prepared.notes.append(describe_floor(floor, least))
+                if exceeds_ceiling(needed, least):
+                    prepared.notes.append(describe_misfit(needed))
             problem = problem.with_likelihood(likelihood.with_fixed_discrepancy(covariance))
             if not estimate.converged:
                 prepared.notes.append("MAP optimiser did not report convergence")

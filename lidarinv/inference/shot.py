@@ -16,13 +16,19 @@ import numpy as np
 from forward.instrument import Instrument
 from lidarinv.observe.analyse import analyse
 from lidarinv.observe.ground_return import fit_ground_return, registered_ground
-from lidarinv.observe.instrument import shot_instrument
+from lidarinv.observe.instrument import pulse_sigma_bins, shot_instrument
 from lidarinv.observe.observation import Observation
 
 from .likelihood.ar_noise import integrated_time
 
 #: The pulse broadening's prior: its sd (m) about the lower flank's fit, and its upper end.
 BROADENING_PRIOR_SD_M, BROADENING_UPPER_M = 0.25, 4.0
+
+#: The analysis's flag for a shot with two plausible grounds; its ground prior then holds both.
+GROUND_AMBIGUOUS = "ground ambiguous"
+#: The weight of the analysis's alternative ground in the ground prior's mixture: the
+#: analysis could not tell the two apart, so the prior does not either; the data decide.
+ALTERNATIVE_GROUND_WEIGHT = 0.5
 
 
 @dataclass(frozen=True)
@@ -194,7 +200,10 @@ class Shot:
         smoothing_m = analysis.smoothing_bins * obs.bin_size
         ground = registered_ground(analysis.ground, instrument.pulse, broadening, smoothing_m)
         pulse_low, pulse_high = pulse_quantiles(instrument.pulse, 1e-3)
-        bottom = min(analysis.signal_end, ground + pulse_low) - settings.margin_below_m
+        lowest = min(ground, ground - analysis.ground + analysis.ground_alternative)
+        if not (GROUND_AMBIGUOUS in analysis.flags and np.isfinite(lowest)):
+            lowest = ground
+        bottom = min(analysis.signal_end, lowest + pulse_low) - settings.margin_below_m
         height = analysis.signal_start - ground
         top = analysis.signal_start + max(settings.margin_above_m, 0.5 * height)
         lo = max(int(np.searchsorted(obs.axis, bottom, side="left")), 0)
@@ -208,6 +217,19 @@ class Shot:
             obs, instrument, analysis, window, (pulse_low, pulse_high), ground, broadening,
             measured,
         )  # fmt: skip
+
+    def alternative_ground(self) -> tuple | None:
+        """The analysis's other plausible ground in the model's registration, where it
+        flags the shot "ground ambiguous": (elevation, sd) (m), the sd half the return's
+        σ (a shoulder's centre is known no better: :func:`lidarinv.observe.
+        ground_candidates.candidate_uncertainty`); None otherwise."""
+        a = self.analysis
+        if GROUND_AMBIGUOUS not in a.flags or not np.isfinite(a.ground_alternative):
+            return None
+        pulse_bins = pulse_sigma_bins(self.instrument.pulse, self.observation.bin_size)
+        return_sigma_m = np.hypot(pulse_bins, a.smoothing_bins) * self.observation.bin_size
+        # registered as the chosen ground is: the same pulse and smoothing move both
+        return self.ground - a.ground + a.ground_alternative, 0.5 * float(return_sigma_m)
 
     @property
     def noise_mean(self) -> float:
@@ -234,6 +256,9 @@ class Shot:
         -------
         dict
             ``ground_elevation``: N(ĝ, sd²) truncated at ±max(6 sd, the pulse's width);
+            where the analysis found two plausible grounds (:meth:`alternative_ground`),
+            an even mixture of that and N(alternative, sd_alt²) (the larger of the two
+            sds), truncated beyond both;
             ``gain``: log-uniform over a factor 20 either side of the window's energy
             above b̂; ``baseline``: uniform b̂ ± 5σ̂; ``noise_sigma``: log-uniform
             [σ̂/3, 3σ̂]; ``top_height``: uniform up to where the canopy leaves the window.
@@ -243,7 +268,7 @@ class Shot:
         ValueError
             For a non-positive ground sd, or a window without room above the ground.
         """
-        from .model.priors import LogUniform, TruncatedNormal, Uniform
+        from .model.priors import LogUniform, TruncatedNormal, TruncatedNormalMixture, Uniform
 
         a, window = self.analysis, self.window
         b, sigma = self.noise_mean, self.noise_sigma
@@ -261,8 +286,17 @@ class Shot:
             raise ValueError(
                 f"shot {self.observation.shot_id}: the window leaves no room above the ground"
             )
+        ground_prior = TruncatedNormal(g, g_sd, g - g_width, g + g_width)
+        alternative = self.alternative_ground()
+        if alternative is not None:
+            alt, alt_sd = alternative[0], max(alternative[1], g_sd)
+            alt_width = max(6.0 * alt_sd, pulse_high - pulse_low)
+            ground_prior = TruncatedNormalMixture(
+                g, g_sd, alt, alt_sd, ALTERNATIVE_GROUND_WEIGHT,
+                min(g - g_width, alt - alt_width), max(g + g_width, alt + alt_width),
+            )  # fmt: skip
         return {
-            "ground_elevation": TruncatedNormal(g, g_sd, g - g_width, g + g_width),
+            "ground_elevation": ground_prior,
             "gain": LogUniform(energy / 20.0, energy * 20.0),
             "baseline": Uniform(b - 5.0 * sigma, b + 5.0 * sigma),
             "noise_sigma": LogUniform(sigma / 3.0, sigma * 3.0),

@@ -215,6 +215,7 @@ class PriorTable:
     """
 
     def __init__(self, priors, unbounded=DEFAULT_UNBOUNDED):
+        priors = list(priors)
         forms = [p.form() for p in priors]
         self._map = unbounded_map(unbounded)
         self._log = np.array([f.log_scale for f in forms], np.bool_)
@@ -225,6 +226,8 @@ class PriorTable:
         self._norm = np.array([f.log_norm for f in forms], float)
         self._x_lower = np.array([f.lower for f in forms], float)
         self._x_upper = np.array([f.upper for f in forms], float)
+        # priors whose density the common form cannot write (a mixture): their own, in numpy
+        self._exact = [(c, p) for c, p in enumerate(priors) if hasattr(p, "exact_log_pdf")]
 
     def log_pdf(self, x) -> np.ndarray:
         """Log densities of the columns of x.
@@ -243,6 +246,8 @@ class PriorTable:
         density = prior_log_pdf(
             flat, self._x_lower, self._x_upper, self._log, self._mean, self._sd, self._norm
         )
+        for column, prior in self._exact:
+            density[:, column] = prior.exact_log_pdf(flat[:, column])
         return density.reshape(x.shape)
 
     def from_unbounded(self, u):

@@ -286,12 +286,109 @@ class TruncatedLogNormal(_OnePrior):
         }
 
 
+@dataclass(frozen=True)
+class TruncatedNormalMixture(_OnePrior):
+    """Two normals, N(mean, sd²) of weight 1 − ``alt_weight`` and N(alt_mean, alt_sd²) of
+    weight ``alt_weight``, each truncated to [lower, upper] (parameter units): a
+    parameter the data show at one of two places (a ground under a closed canopy).
+
+    Its :meth:`form` carries the support and the first component only (the unbounded map
+    is uniform over the support whatever the density); :meth:`exact_log_pdf` is the
+    mixture's density, which :class:`.prior_table.PriorTable` uses instead of the form's.
+    """
+
+    mean: float
+    sd: float
+    alt_mean: float
+    alt_sd: float
+    alt_weight: float
+    lower: float
+    upper: float
+
+    def __post_init__(self):
+        _check_bounds(self.lower, self.upper, "truncated-normal-mixture")
+        for mean, sd in ((self.mean, self.sd), (self.alt_mean, self.alt_sd)):
+            if not (np.isfinite(mean) and np.isfinite(sd) and sd > 0):
+                raise ValueError(f"a mixture's component needs a finite mean and sd > 0: {self}")
+        if not 0.0 < self.alt_weight < 1.0:
+            raise ValueError(f"a mixture's alt_weight must lie in (0, 1), got {self.alt_weight}")
+
+    def components(self) -> tuple:
+        """The two components as :class:`TruncatedNormal`, and their weights."""
+        first = TruncatedNormal(self.mean, self.sd, self.lower, self.upper)
+        second = TruncatedNormal(self.alt_mean, self.alt_sd, self.lower, self.upper)
+        return (first, second), (1.0 - self.alt_weight, self.alt_weight)
+
+    def component_log_pdf(self, x) -> np.ndarray:
+        """log(w_k·p_k(x)) of each component (..., 2); −inf outside the support."""
+        x = np.asarray(x, float)
+        (first, second), weights = self.components()
+        inside = (x >= self.lower) & (x <= self.upper)
+        terms = []
+        for part, weight in zip((first, second), weights):
+            z = (x - part.mean) / part.sd
+            terms.append(np.where(inside, np.log(weight) - 0.5 * z * z - part._log_norm(), -np.inf))
+        return np.stack(terms, axis=-1)
+
+    def exact_log_pdf(self, x) -> np.ndarray:
+        """The mixture's log density at ``x``; −inf outside the support and for NaN."""
+        with np.errstate(invalid="ignore"):
+            total = np.logaddexp.reduce(self.component_log_pdf(x), axis=-1)
+        return np.where(np.isfinite(total), total, -np.inf)
+
+    def responsibilities(self, x) -> np.ndarray:
+        """P(component k | x) (..., 2): how much of each value the second component explains."""
+        terms = self.component_log_pdf(x)
+        with np.errstate(invalid="ignore"):
+            return np.exp(terms - np.logaddexp.reduce(terms, axis=-1)[..., None])
+
+    def form(self):
+        """The support, with the first component's Gaussian (see the class).
+
+        Returns
+        -------
+        PriorForm
+        """
+        return TruncatedNormal(self.mean, self.sd, self.lower, self.upper).form()
+
+    def sample(self, rng, size):
+        """Draws from the mixture.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        size : int
+
+        Returns
+        -------
+        array (size,)
+        """
+        (first, second), _ = self.components()
+        second_part = rng.uniform(size=size) < self.alt_weight
+        return np.where(second_part, second.sample(rng, size), first.sample(rng, size))
+
+    def describe(self):
+        """The prior as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+        """
+        return {
+            "kind": "truncated-normal-mixture",
+            **{k: getattr(self, k) for k in ("mean", "sd", "alt_mean", "alt_sd", "alt_weight")},
+            "lower": self.lower,
+            "upper": self.upper,
+        }
+
+
 #: Prior kinds by name (the ``kind`` key of a priors file).
 PRIOR_KINDS = {
     "uniform": Uniform,
     "log-uniform": LogUniform,
     "truncated-normal": TruncatedNormal,
     "truncated-log-normal": TruncatedLogNormal,
+    "truncated-normal-mixture": TruncatedNormalMixture,
 }
 
 

@@ -91,3 +91,55 @@ def describe(kept) -> str | None:
         f"ground ambiguous: the MAP puts it at {kept[0][1]:.2f} m, other explanations at "
         f"{others}; the walkers started in each (see the ground's posterior)"
     )
+
+
+#: Posterior share below which a ground of a two-ground prior no longer counts as an
+#: explanation: the odds of :data:`MASS_WINDOW`, 1 : 20.
+LEAST_SHARE = 1.0 / 21.0
+
+
+def ground_modes(space, x) -> dict | None:
+    """The evidence for each ground of a two-ground prior
+    (:class:`..model.priors.TruncatedNormalMixture`), from the posterior samples.
+
+    Parameters
+    ----------
+    space : ParameterSpace
+    x : array (n, ndim)
+        Posterior samples (physical units).
+
+    Returns
+    -------
+    dict or None
+        ``grounds`` (m): the analysis's chosen ground, then its alternative;
+        ``prior_weights``; ``posterior_probability``: P(the ground is that return | y),
+        the posterior mean of each component's responsibility for the sample's ground
+        (the prior weights updated by the data's evidence for each). None where the
+        ground's prior is not a mixture or the ground is not free.
+    """
+    if "ground_elevation" not in space.names:
+        return None
+    prior = space.by_name["ground_elevation"].prior
+    if not hasattr(prior, "responsibilities"):
+        return None
+    ground = np.asarray(x, float)[:, space.names.index("ground_elevation")]
+    shares = prior.responsibilities(ground)
+    shares = shares[np.all(np.isfinite(shares), axis=1)]
+    _, weights = prior.components()
+    return {
+        "grounds": [float(prior.mean), float(prior.alt_mean)],
+        "prior_weights": [float(w) for w in weights],
+        "posterior_probability": [float(p) for p in shares.mean(axis=0)],
+    }
+
+
+def describe_modes(modes) -> str | None:
+    """The result's flag where both grounds of a two-ground prior keep posterior mass."""
+    if modes is None or min(modes["posterior_probability"]) < LEAST_SHARE:
+        return None
+    (chosen, alternative), (p_chosen, p_alt) = modes["grounds"], modes["posterior_probability"]
+    return (
+        f"ground ambiguous in the posterior: P = {p_chosen:.2f} at the analysis's ground "
+        f"({chosen:.2f} m), {p_alt:.2f} at its alternative ({alternative:.2f} m); the "
+        "ground's quantiles span both"
+    )

@@ -7,10 +7,12 @@ from lidarinv.observe import processing_settings
 
 from ..model.tallest_stem import disc_area
 from ..model.waveform import RH_LEVELS, relative_heights
+from ..passes.ambiguity import describe_modes, ground_modes
 from ..passes.realisations import footprint_cover
 from ..posterior import BLOB_NAMES, BLOB_UNITS
 from ..problem import InversionProblem
 from ..sampling.sampler import SamplerRun
+from .footprint import FOOTPRINT_BARE, FOOTPRINT_NO_STEM, footprint_bare, footprint_no_stem
 from .product_metrics import product_relative_heights
 from .result import QUANTILES, InversionResult
 
@@ -220,8 +222,12 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     blobs = _flat(run.blobs, run)
     derived = {name: blobs[:, i] for i, name in enumerate(BLOB_NAMES)}
     derived[FOOTPRINT_TOP] = footprint_top_height(problem, x, derived["density"], rng)
+    derived[FOOTPRINT_NO_STEM] = footprint_no_stem(problem, derived["density"])
     drawn, heights = sample_draws(problem, x, rng)  # e.g. the gain, from p(gain | θ, y)
     derived.update(heights)
+    seen = heights["rh98_footprint"]  # the footprint's own waveform, else the model's
+    seen = seen if np.isfinite(seen).any() else derived["rh98"]
+    derived[FOOTPRINT_BARE] = footprint_bare(problem, x, seen)
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
     terms = post.evaluate(x[pick], keep_signal=True)
     good = np.isfinite(terms.log_posterior)
@@ -232,7 +238,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     fit = fit_statistics(
         terms.log_likelihood[good], problem.window.samples, replicated, rep_mean, rep_variance
     )
-    units = {FOOTPRINT_TOP: "m"}
+    units = {FOOTPRINT_TOP: "m", FOOTPRINT_NO_STEM: "1", FOOTPRINT_BARE: "1"}
     if problem.settings.footprint_cover_draws:  # the last of the rng's uses: the rest as without
         derived[FOOTPRINT_COVER] = footprint_cover(
             post, problem.instrument, x, rng, problem.settings.footprint_cover_draws
@@ -244,6 +250,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     n_kept = run.chain.shape[0] - run.burn
     ess = n_kept * run.chain.shape[1] / np.where(np.isfinite(run.tau), run.tau, np.inf)
     a = problem.analysis
+    modes = ground_modes(space, x)  # the evidence for each ground of a two-ground prior
     truth = {
         k: float(v)
         for k, v in problem.observation.truth.items()
@@ -280,8 +287,12 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             # the monitored reported quantities: bulk and tail ESS, split R̂, τ (steps)
             "quantities": run.quantities,
             **fit,
+            **({} if modes is None else {"ground_modes": modes}),
         },
-        flags=list(run.flags) + post.likelihood.notes + _misfit_flags(fit),
+        flags=list(run.flags)
+        + post.likelihood.notes
+        + _misfit_flags(fit)
+        + [flag for flag in [describe_modes(modes)] if flag],
         profile_heights=profile_heights,
         profile=np.percentile(profile, QUANTILES, axis=0),
         axis=problem.window.axis,

@@ -140,6 +140,35 @@ class InversionResult:
             out[name]["units"] = self.units.get(name, "")
         return out
 
+    def footprint_canopy(self) -> dict | None:
+        """The footprint's canopy: how likely it holds no tree, and its height if it holds one.
+
+        Returns
+        -------
+        dict or None
+            ``no_tree_probability``: the posterior mean of
+            ``footprint_no_stem_probability``, P(no stem within the footprint's disc | y);
+            ``bare_probability``: the posterior mean of ``footprint_bare``, P(the
+            footprint's waveform shows nothing above its ground return | y) (NaN where
+            not drawn);
+            ``height_given_canopy``: quantiles (as :meth:`summary`'s rows, m) of the
+            footprint's tallest stem among the samples whose draw holds one (NaN where
+            none does). None for a result without these quantities.
+        """
+        if "footprint_no_stem_probability" not in self.derived:
+            return None
+        no_stem = self.derived["footprint_no_stem_probability"]
+        top = self.column("footprint_top_height")
+        standing = top[np.isfinite(top) & (top > 0.0)]
+        q = np.percentile(standing, QUANTILES) if standing.size else np.full(5, np.nan)
+        bare = self.derived.get("footprint_bare", np.array([np.nan]))
+        bare = bare[np.isfinite(bare)]
+        return {
+            "no_tree_probability": float(np.mean(no_stem[np.isfinite(no_stem)])),
+            "bare_probability": float(np.mean(bare)) if bare.size else float("nan"),
+            "height_given_canopy": {label: float(v) for label, v in zip(_LABELS, q)},
+        }
+
     def summary_table(self) -> str:
         """A printable table: median and the 5/16/84/95 % quantiles, then the diagnostics.
 
@@ -176,6 +205,8 @@ class InversionResult:
                 f"parameters), posterior-predictive p {d['predictive_p_value']:.3f}, "
                 f"residuals {d.get('residual_scale', np.nan):.2f}× the modelled scatter"
             )
+        if "model_error_needed" in d or "instrument_floor" in d:
+            lines.append(_model_error_line(d))
         if "cohorts" in d:
             lines.append(_stand_model_line(d["cohorts"]))
         lines += [f"warning: {flag}" for flag in self.flags]
@@ -201,6 +232,12 @@ class InversionResult:
             "cohorts": int((self.settings or {}).get("cohorts", 1)),
             "flags": "; ".join(self.flags),
         }
+        canopy = self.footprint_canopy()
+        if canopy is not None:
+            row["footprint_no_tree_probability"] = canopy["no_tree_probability"]
+            row["footprint_bare_probability"] = canopy["bare_probability"]
+            given = canopy["height_given_canopy"]
+            row.update({f"footprint_height_given_canopy_{k}": given[k] for k in _LABELS})
         for name, stats in self.summary().items():
             row.update({f"{name}_{label}": stats[label] for label in _LABELS})
         return row
@@ -361,6 +398,17 @@ def _stand_model_line(choice) -> str:
         )
     bic = ", ".join(f"{k} cohort(s) {v:.1f}" for k, v in choice["bic"].items())
     return f"stand model: {choice['chosen']} cohort(s), by BIC ({bic})"
+
+
+def _model_error_line(d) -> str:
+    """The summary's line on the instrument model's error: used, needed and its ceiling."""
+    needed = d.get("model_error_needed")
+    finite = needed is not None and np.isfinite(needed)
+    needed = f"{100 * needed:.0f} %" if finite else "more than any"
+    return (
+        f"model error: {100 * (d.get('instrument_floor') or 0.0):.0f} % of the signal per bin "
+        f"(the residuals need {needed}; ceiling {100 * d.get('model_error_ceiling', np.nan):.0f} %)"
+    )
 
 
 def _jsonable(value):

@@ -1,0 +1,90 @@
+"""A canopy height that a bare footprint cannot inflate: the probability that the footprint
+holds no tree, from the Poisson stand's density and the footprint's disc, and the height
+given that it holds one."""
+
+import numpy as np
+import pytest
+from tiny_results import tiny_result
+
+from forward.pulse import GaussianPulse
+from lidarinv.cli.invert import headline
+from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
+from lidarinv.inference import InversionSettings, build_problem
+from lidarinv.inference.model.tallest_stem import disc_area
+from lidarinv.inference.results.collect import footprint_top_height
+from lidarinv.inference.results.footprint import bare_ground_rh98, footprint_no_stem
+
+
+@pytest.fixture(scope="module")
+def problem():
+    shot = synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], np.random.default_rng(3))
+    return build_problem(shot, InversionSettings(cohorts=1)), shot
+
+
+def test_no_stem_probability_is_the_share_of_footprints_without_a_stem(problem):
+    """Draws of the footprint's tallest stem are 0 (no stem in the disc) as often as a
+    Poisson count of mean λ·A is 0."""
+    problem, shot = problem
+    truth = np.array([shot.truth[name] for name in problem.space.names])
+    x = np.repeat(truth[None, :], 20000, axis=0)
+    area = disc_area(problem.instrument.footprint_sigma_m)
+    density_per_ha = np.full(x.shape[0], 0.7 / area * 1e4)  # 0.7 stems a footprint
+    no_stem = footprint_no_stem(problem, density_per_ha)
+    np.testing.assert_allclose(no_stem, np.exp(-0.7))
+    tallest = footprint_top_height(problem, x, density_per_ha, np.random.default_rng(1))
+    assert np.mean(tallest == 0.0) == pytest.approx(np.exp(-0.7), abs=0.01)
+    assert np.all(tallest[tallest > 0] > 1.0)  # a stem that stands has a height
+
+
+def test_a_bare_ground_return_reaches_its_pulse_s_98_percent_quantile():
+    """A flat ground under a Gaussian pulse of σp widened by σb returns a Gaussian of
+    σ = √(σp² + σb²): 98 % of it lies below 2.054 σ above its peak (plus the RH's bin)."""
+    pulse = GaussianPulse(10.0)
+    sigma_p = pulse.sigma_m
+    broadening = np.array([0.0, 0.5, 1.5])
+    expected = 2.0537 * np.hypot(sigma_p, broadening) + 0.15
+    np.testing.assert_allclose(bare_ground_rh98(pulse, broadening, 0.15), expected, atol=0.02)
+
+
+def _bare(p_stem, seed=0, p_bare=None):
+    """A tiny result whose footprint holds a 9 m stem with probability ``p_stem``."""
+    result = tiny_result(seed=seed)
+    rng = np.random.default_rng(seed)
+    n = result.samples.shape[0]
+    standing = rng.uniform(size=n) < p_stem
+    result.derived["footprint_top_height"] = np.where(standing, rng.normal(9.3, 0.5, n), 0.0)
+    result.derived["footprint_no_stem_probability"] = np.full(n, 1.0 - p_stem)
+    result.units.update(footprint_top_height="m", footprint_no_stem_probability="1")
+    if p_bare is not None:
+        result.derived["footprint_bare"] = (rng.uniform(size=n) < p_bare).astype(float)
+    return result
+
+
+def test_a_bare_footprint_says_so_and_keeps_the_height_of_a_tree_apart():
+    canopy = _bare(0.2).footprint_canopy()
+    assert canopy["no_tree_probability"] == pytest.approx(0.8)
+    given = canopy["height_given_canopy"]
+    assert 8.0 < given["p05"] < given["median"] < given["p95"] < 10.5
+    text = headline(_bare(0.2))
+    assert "more likely holds no tree" in text and "canopy height if any" in text
+    assert "more likely holds no tree" not in headline(_bare(0.9))
+    row = _bare(0.2).summary_row()
+    assert row["footprint_no_tree_probability"] == pytest.approx(0.8)
+    assert row["footprint_height_given_canopy_median"] == pytest.approx(given["median"])
+
+
+def test_a_footprint_whose_waveform_shows_no_canopy_says_so():
+    """Many small stems (no tree is unlikely) whose crowns return nothing above the ground:
+    the headline says the waveform sees no canopy."""
+    text = headline(_bare(0.99, p_bare=0.9))
+    assert "more likely holds no tree" not in text
+    assert "more likely holds no canopy the waveform sees" in text
+    assert _bare(0.99, p_bare=0.9).footprint_canopy()["bare_probability"] == pytest.approx(
+        0.9, abs=0.05
+    )
+    assert "no canopy the waveform sees" not in headline(_bare(0.99, p_bare=0.1))
+
+
+def test_a_result_without_the_quantity_has_no_canopy_statement():
+    assert tiny_result().footprint_canopy() is None
+    assert "P(no tree" not in headline(tiny_result())
