@@ -174,7 +174,7 @@ def agreement(run: dict, reference: dict) -> dict:
 def real_observations(data, instrument, ids):
     """The shots ``ids`` of an instrument's L1B file among the real files (in the
     order given), refusing ids the file does not hold."""
-    from real_products import _files as product_files
+    from real_products import data_files as product_files
 
     from lidarinv.io import iter_observations
     from lidarinv.observe import Observation

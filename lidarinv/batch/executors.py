@@ -155,7 +155,7 @@ def watch_parent(parent: int, interval: float = PARENT_POLL_S) -> threading.Thre
     return thread
 
 
-def _init_worker(invert, settings, parent=None) -> None:
+def init_worker(invert, settings, parent=None) -> None:
     """Process-pool initializer: one thread per library, shared data stored once; Ctrl-C
     is left to the coordinator, which stops the workers (no traceback from each); the
     worker ends when the coordinator ``parent`` (a pid) dies."""
@@ -247,7 +247,7 @@ class ProcessBackend:
         return cf.ProcessPoolExecutor(
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
-            initializer=_init_worker,
+            initializer=init_worker,
             initargs=(*self._initargs, os.getpid()),
         )
 

@@ -64,7 +64,7 @@ def add_arguments(parser) -> None:
     )
 
 
-def _settings(args):
+def batch_settings(args):
     """Inversion settings from the options; None (the inversion's defaults) when none of
     them is given, so that a results file written without options resumes as before."""
     given = (args.priors, args.instrument, args.max_steps, args.walkers, args.cohorts,
@@ -172,7 +172,7 @@ def run(args) -> int:
 
     described = inspect_file(args.file, args.format, args.beam)
     override = check_instrument(args, described)
-    settings = _settings(args)
+    settings = batch_settings(args)
     invert = _invert_function(args.invert)
     _check_outputs(args)
     if override:

@@ -119,7 +119,7 @@ class TwoCohortMapping(StandMapping):
     def _stacked_laws(self, heights):
         """The cohorts' shares (a tuple) and their height laws' arguments
         (``family.arguments``) stacked on a leading cohort axis, of ``heights`` ((share,
-        mean, sd) per cohort): every cohort's function in one call (:func:`_mixture_sum`)."""
+        mean, sd) per cohort): every cohort's function in one call (:func:`mixture_sum`)."""
         mean, sd = (np.stack(column) for column in tuple(zip(*heights))[1:])
         shares = tuple(share for share, _, _ in heights)
         return shares, self.family.arguments(mean, sd, self.truncation)
@@ -155,14 +155,14 @@ class TwoCohortMapping(StandMapping):
         shares, args = laws
         f1 = shares[0]
         cut = fast("isf", np.clip(tail / np.maximum(f1, 1e-300), 0.0, 1.0), *_cohort_row(args, 0))
-        rows = np.flatnonzero(np.abs(_mixture_sum(fast, "sf", cut, *laws) - tail) > 1e-9 * tail)
+        rows = np.flatnonzero(np.abs(mixture_sum(fast, "sf", cut, *laws) - tail) > 1e-9 * tail)
         if rows.size:
             part = tuple(f[rows] for f in shares), _cohort_row(args, (slice(None), rows))
             low = np.where(tail[rows] < f1[rows], cut[rows], 0.0)
             high = np.max(fast("isf", 1e-12, *part[1]), axis=0)
             for _ in range(_BISECTION_STEPS):
                 mid = 0.5 * (low + high)
-                above = _mixture_sum(fast, "sf", mid, *part) > tail[rows]
+                above = mixture_sum(fast, "sf", mid, *part) > tail[rows]
                 low, high = np.where(above, mid, low), np.where(above, high, mid)
             cut[rows] = 0.5 * (low + high)
         return np.where(tail < 1.0, cut, 0.0)
@@ -176,8 +176,8 @@ class TwoCohortMapping(StandMapping):
         tail = np.clip(per_m2 / lam, 1e-9, 1.0)
         cut = self._mixture_isf(laws, tail)
         fast = self.family.fast
-        share = _mixture_sum(fast, "sf", cut, *laws)
-        partial = _mixture_sum(fast, "mean_above", cut, *laws)
+        share = mixture_sum(fast, "sf", cut, *laws)
+        partial = mixture_sum(fast, "mean_above", cut, *laws)
         return partial / np.maximum(share, 1e-300)
 
     def _columns(self, v):
@@ -283,7 +283,7 @@ def _cohort_row(args, index):
     return args[index] if np.ndim(args) else args
 
 
-def _mixture_sum(fast, which, h, shares, args):
+def mixture_sum(fast, which, h, shares, args):
     """Σ_k f_k·F_k(h) of the family's function ``which`` (``fast``), every cohort in one
     call: ``args`` stacked on a leading cohort axis, ``shares`` one array per cohort."""
     values = fast(which, h, *args)

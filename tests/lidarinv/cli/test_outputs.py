@@ -12,7 +12,7 @@ from tiny_results import tiny_result
 
 import lidarinv.inference
 from lidarinv.cli import build_parser, main
-from lidarinv.cli.batch import _settings as batch_settings
+from lidarinv.cli.batch import batch_settings
 from lidarinv.cli.options import inversion_settings
 from lidarinv.cli.outputs import save_group
 from lidarinv.inference import InversionResult
@@ -283,9 +283,9 @@ def test_local_workers_leave_ctrl_c_to_the_coordinator():
     import signal
     from concurrent.futures import ProcessPoolExecutor
 
-    from lidarinv.batch.executors import _init_worker
+    from lidarinv.batch.executors import init_worker
 
-    with ProcessPoolExecutor(1, initializer=_init_worker, initargs=(None, None)) as pool:
+    with ProcessPoolExecutor(1, initializer=init_worker, initargs=(None, None)) as pool:
         handler = pool.submit(signal.getsignal, signal.SIGINT).result()
     assert handler == signal.SIG_IGN
     assert os.environ.get("OMP_NUM_THREADS") != "changed"  # the coordinator's is untouched

@@ -12,7 +12,7 @@ from lidarinv.inference import InversionSettings, SamplerSettings
 from lidarinv.inference.model.parameters import default_space
 from lidarinv.inference.model.priors import Uniform
 from lidarinv.inference.model.stand import StandMapping, default_template
-from lidarinv.inference.model.two_cohort import COHORT2, TwoCohortMapping, _mixture_sum
+from lidarinv.inference.model.two_cohort import COHORT2, TwoCohortMapping, mixture_sum
 from lidarinv.inference.passes.cohorts import (
     STOREYS_RESOLVED_PULSE_WIDTHS,
     choose_cohorts,
@@ -108,8 +108,8 @@ def test_both_storeys_moments_in_one_pass_equal_each_storeys_own(rng):
         assert np.array_equal(shares[k], share)
         survival = survival + share * family.sf(cut, mean, sd, t)
         dominant_cut = dominant_cut + share * family.mean_above(cut, mean, sd, t)
-    assert np.array_equal(_mixture_sum(family.fast, "sf", cut, shares, args), survival)
-    assert np.array_equal(_mixture_sum(family.fast, "mean_above", cut, shares, args), dominant_cut)
+    assert np.array_equal(mixture_sum(family.fast, "sf", cut, shares, args), survival)
+    assert np.array_equal(mixture_sum(family.fast, "mean_above", cut, shares, args), dominant_cut)
 
 
 def test_the_tallest_stem_of_a_two_storey_stand_follows_the_poisson_law(rng):
