@@ -55,7 +55,7 @@ from forward.backends import jit, resolve
 
 from .cover_pai import (  # noqa: F401  (re-exported: the cover–PAI maps are coordinates too)
     INTERCEPTION_SLOPE,
-    _cover_pai_compiled,
+    cover_pai_compiled,
     from_cover_pai,
     from_cover_pai_bounded,
     ridge_range,
@@ -279,7 +279,7 @@ def ridges_from_unbounded(
     if resolve(backend) == "numba":
         if joint is not None:
             c, a, cover_bounds, pai_bounds = joint
-            _cover_pai_compiled(u, x, log_jac, c, a, cover_bounds, pai_bounds, slope)
+            cover_pai_compiled(u, x, log_jac, c, a, cover_bounds, pai_bounds, slope)
         if base is not None or centroid is not None:
             columns, fixed = inputs
             _crown_and_ground_compiled(

@@ -243,7 +243,7 @@ def _cover_pai(u, x, log_jac, c, a, bounds, slope, w_high, w_low):
         log_jac[r, a] = 0.0
 
 
-def _cover_pai_compiled(u, x, log_jac, c, a, cover_bounds, pai_bounds, slope):
+def cover_pai_compiled(u, x, log_jac, c, a, cover_bounds, pai_bounds, slope):
     """Write cover and PAI (columns ``c``, ``a`` of x) and their log-Jacobian from the
     joint coordinates (s, v) in the same columns of u, in place (scipy's lambertw between
     the kernel's two passes)."""
