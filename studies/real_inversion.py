@@ -277,7 +277,7 @@ def _contradictions(done) -> int:
     for r in done:
         p, missing = r["posterior"], [np.nan] * 3
         rh50 = p.get("rh50_product", p.get("rh50", missing))[1]
-        rh98 = p.get("rh98_product", p["rh98"])[1]
+        rh98 = p.get("rh98_product", p.get("rh98", missing))[1]
         bare = p.get("cover", missing)[1] == 0.0 and rh98 > 5.0
         count += int((rh50 < 0.0 or bare) and not r["flags"])
     return count

@@ -219,10 +219,15 @@ class Shot:
         )  # fmt: skip
 
     def alternative_ground(self) -> tuple | None:
-        """The analysis's other plausible ground in the model's registration, where it
-        flags the shot "ground ambiguous": (elevation, sd) (m), the sd half the return's
-        σ (a shoulder's centre is known no better: :func:`lidarinv.observe.
-        ground_candidates.candidate_uncertainty`); None otherwise."""
+        """The analysis's other plausible ground, in the model's registration.
+
+        Returns
+        -------
+        (float, float) (m) or None
+            Its elevation and sd where the analysis flags the shot "ground ambiguous",
+            None otherwise. The sd is half the return's σ: a shoulder's centre is known
+            no better (``lidarinv.observe.ground_candidates.candidate_uncertainty``).
+        """
         a = self.analysis
         if GROUND_AMBIGUOUS not in a.flags or not np.isfinite(a.ground_alternative):
             return None

@@ -69,7 +69,7 @@ def stem_density_per_ha(position, footprint_sigma_m):
     Returns
     -------
     array (stems/ha)
-        1e4·w(r), w the Gaussian footprint weight (:func:`forward.instrument.
+        1e4·w(r), w the Gaussian footprint weight (:func:`forward.footprint.
         gaussian_footprint_weight`) at r² = V·R²: on average over V, the disc's weight
         1 − e⁻² over A.
     """
