@@ -41,13 +41,12 @@ Writes studies/output/inversion_speed[_TAG]/summary.json and speed.png (syntheti
 summary.json and time_vs_error.png (``--data``).
 """
 
-import os
+import harness
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"
+harness.pin_threads()
 
-import argparse  # noqa: E402
 import json  # noqa: E402
+import os  # noqa: E402
 import time  # noqa: E402
 from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -265,7 +264,7 @@ def run_real(args, settings) -> dict:
         if args.reference_steps:
             reference = reference_run(obs, settings, reference_seed, args, store)
             store_path.parent.mkdir(parents=True, exist_ok=True)
-            store_path.write_text(json.dumps(store, indent=1))
+            harness.write_json(store_path, store)
         for name, changes in variants.items():
             sampler = replace(settings.sampler, **changes)
             result, seconds, cpu = _timed_result(obs, replace(settings, sampler=sampler), run_seed)
@@ -282,11 +281,11 @@ def run_real(args, settings) -> dict:
                                              "converged", "max_error_sd", "max_error_vs_tau_sd",
                                              "flags")}  # fmt: skip
             print(json.dumps(brief), flush=True)
-            (folder / "summary.json").write_text(json.dumps({"shots": rows}, indent=1))
+            harness.write_json(folder / "summary.json", {"shots": rows})
     summary = {"variants": _variant_table(rows, variants), "shots": rows}
     summary["references"] = {k: v for k, v in store.items() if k.split(":")[1] in
                              {str(o.shot_id) for o in shots}}  # fmt: skip
-    (folder / "summary.json").write_text(json.dumps(summary, indent=1))
+    harness.write_json(folder / "summary.json", summary)
     plot_time_vs_error(rows, variants, folder / "time_vs_error.png")
     return summary
 
@@ -361,9 +360,7 @@ def plot_time_vs_error(rows, variants, path):
 
 
 def _output_folder(tag) -> Path:
-    folder = Path(__file__).parent / "output" / ("inversion_speed" + tag)
-    folder.mkdir(parents=True, exist_ok=True)
-    return folder
+    return harness.output_folder("inversion_speed", tag)
 
 
 def add_sampler_options(parser):
@@ -436,13 +433,12 @@ def plot_speed(summary, configurations, path):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, seed=5)
     parser.add_argument("--n", type=int, default=3)
     parser.add_argument(
         "--repeats", type=int, default=1, help="inversions of each shot, with other seeds"
     )
     parser.add_argument("--max-steps", type=int, default=SamplerSettings().max_steps)
-    parser.add_argument("--seed", type=int, default=5)
     parser.add_argument("--config", nargs="+", default=list(CONFIGURATIONS), choices=CONFIGURATIONS)
     parser.add_argument(
         "--sample-gain", action="store_true", help="sample the gain instead of integrating it out"
@@ -461,7 +457,6 @@ def main():
         help="condition each footprint on a latent tallest stem (InversionSettings.tallest_stem)",
     )
     add_sampler_options(parser)
-    parser.add_argument("--tag", default="", help="suffix of the output folder")
     parser.add_argument("--data", help="real files: a folder, or 'examples' (lidarinv/data)")
     parser.add_argument(
         "--combine", nargs="+", metavar="SUMMARY",
@@ -493,7 +488,7 @@ def main():
         variants = list(dict.fromkeys(row["variant"] for row in rows))
         folder = _output_folder(args.tag)
         summary = {"variants": _variant_table(rows, variants), "shots": rows}
-        (folder / "summary.json").write_text(json.dumps(summary, indent=1))
+        harness.write_json(folder / "summary.json", summary)
         plot_time_vs_error(rows, variants, folder / "time_vs_error.png")
         print(json.dumps(summary["variants"], indent=1))
         return
@@ -546,7 +541,7 @@ def main():
     summary["walkers"] = args.walkers
     summary["moves"] = [list(m) for m in sampler.moves]
     folder = _output_folder(args.tag)
-    (folder / "summary.json").write_text(json.dumps(summary, indent=1))
+    harness.write_json(folder / "summary.json", summary)
     plot_speed(summary, args.config, folder / "speed.png")
     brief = {
         k: {kk: vv for kk, vv in v.items() if kk != "shots"}

@@ -24,12 +24,12 @@ joins.
                                      [--priors FILE] [--cohorts 1|2|auto] [--tag _NAME]
 """
 
-import argparse
 import json
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import harness
 import numpy as np
 
 from lidarinv.inference.passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
@@ -356,18 +356,15 @@ def rh98_figure(records, path):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, seed=1, workers=1)
     parser.add_argument("--data", default=str(HERE.parent.parent / "shared" / "data" / "real"))
     parser.add_argument("--instrument", nargs="+", default=["gedi", "lvis"])
     parser.add_argument("--skip-shots", type=int, default=0,
                         help="leave out an instrument's first N quality shots")  # fmt: skip
     parser.add_argument("--max-shots", type=int, help="at most this many shots an instrument")
     parser.add_argument("--max-steps", type=int, help="sampler step cap (default: settings')")
-    parser.add_argument("--workers", type=int, default=1)
-    parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--priors", type=Path, help="priors file (default settings without)")
     parser.add_argument("--cohorts", choices=("1", "2", "auto"), help="height cohorts")
-    parser.add_argument("--tag", default="")
     parser.add_argument(
         "--combine", nargs="+", metavar="TAG",
         help="write one summary of earlier runs (their --tag) instead of inverting",
@@ -376,11 +373,10 @@ def main(argv=None):
     if args.skip_shots < 0:
         parser.error(f"--skip-shots must be ≥ 0, got {args.skip_shots}")
     if args.combine:
-        return combine(args.combine, HERE / "output" / f"real_inversion{args.tag}")
+        return combine(args.combine, harness.output_folder("real_inversion", args.tag))
     files = _files(args.data)
     wanted = products(files)
-    out = HERE / "output" / f"real_inversion{args.tag}"
-    out.mkdir(parents=True, exist_ok=True)
+    out = harness.output_folder("real_inversion", args.tag)
     jobs = []
     for instrument in args.instrument:
         shots = [o for o in iter_observations(files[f"{instrument}-l1b"])
@@ -432,7 +428,7 @@ def combine(tags, out) -> None:
     out.mkdir(parents=True, exist_ok=True)
     by_shot, summary = {}, {"combined": list(tags), "data": {}}
     for tag in tags:
-        folder = HERE / "output" / f"real_inversion{tag}"
+        folder = harness.OUTPUT / f"real_inversion{tag}"
         done = folder / "summary.json"
         part = json.loads(done.read_text()) if done.exists() else {"stopped_early": True}
         summary["data"].update(part.get("data", {}))
@@ -448,7 +444,7 @@ def combine(tags, out) -> None:
     for instrument in sorted({r["instrument"] for r in records}):
         summary[instrument] = statistics(records, instrument)
     for tag in tags:  # the per-shot figures, for the flight lines' worst shots
-        for figure in (HERE / "output" / f"real_inversion{tag}" / "shots").glob("*.png"):
+        for figure in (harness.OUTPUT / f"real_inversion{tag}" / "shots").glob("*.png"):
             if figure.parent.parent.resolve() != out.resolve():
                 (out / "shots").mkdir(exist_ok=True)
                 shutil.copy(figure, out / "shots" / figure.name)
@@ -459,7 +455,7 @@ def combine(tags, out) -> None:
 
 def _write(out, summary, records) -> None:
     """The run's summary, its shots and the figure of RH98 against the product."""
-    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
+    harness.write_json(out / "summary.json", summary)
     _write_shots(out, records)
     rh98_figure(records, out / "rh98.png")
 
