@@ -290,11 +290,8 @@ class ShotLikelihood:
         Raises
         ------
         ValueError
-            Where :attr:`conditioning_obstacle` is not None.
+            Where :attr:`conditioning_obstacle` is not None (the function checks it).
         """
-        obstacle = self.conditioning_obstacle
-        if obstacle is not None:
-            raise ValueError(f"the discrepancy cannot be drawn given the data: {obstacle}")
         return conditional.discrepancy_given_data(self, signal, values, rng, self._from_basis)
 
     def log_likelihood(self, signal, values):
