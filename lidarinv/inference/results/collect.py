@@ -13,6 +13,7 @@ from ..posterior import BLOB_NAMES, BLOB_UNITS
 from ..problem import InversionProblem
 from ..sampling.sampler import SamplerRun
 from .footprint import FOOTPRINT_BARE, FOOTPRINT_NO_STEM, footprint_bare, footprint_no_stem
+from .local_misfit import describe_local_misfit, local_misfit, return_width_bins
 from .product_metrics import product_relative_heights
 from .result import QUANTILES, InversionResult
 
@@ -238,6 +239,13 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     fit = fit_statistics(
         terms.log_likelihood[good], problem.window.samples, replicated, rep_mean, rep_variance
     )
+    broadening = float(np.median(values.get("pulse_broadening", 0.0)))
+    fit.update(
+        local_misfit(
+            problem.window.samples, replicated, rep_mean, values["baseline"], problem.window.axis,
+            return_width_bins(problem.instrument.pulse, problem.observation.bin_size, broadening),
+        )
+    )  # fmt: skip
     units = {FOOTPRINT_TOP: "m", FOOTPRINT_NO_STEM: "1", FOOTPRINT_BARE: "1"}
     if problem.settings.footprint_cover_draws:  # the last of the rng's uses: the rest as without
         derived[FOOTPRINT_COVER] = footprint_cover(
@@ -292,6 +300,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
         flags=list(run.flags)
         + post.likelihood.notes
         + _misfit_flags(fit)
+        + describe_local_misfit(fit)
         + [flag for flag in [describe_modes(modes)] if flag],
         profile_heights=profile_heights,
         profile=np.percentile(profile, QUANTILES, axis=0),
