@@ -8,6 +8,12 @@ comparison is repeated at ρv/ρg = 1 and 2 to show how much of it the assumed r
 carries. Each file's shots are checked against their track neighbours
 (:mod:`lidarinv.observe.terrain`), as ``lidarinv metrics`` does.
 
+Where the RH offsets come from: ``rh_profile`` gives the median difference at each
+percentile the product has (RH10 … RH100), and RH recomputed in the same convention with
+the window's top moved to the product's own signal start (GEDI L2A
+``elev_highestreturn``, LVIS L2 ZT), which shows how much of each offset the signal start
+carries.
+
 The LVIS shots are also reported per flight line (grouped by the ``LFID`` the file
 gives each shot): the ground of every shot with one, against L2 ZG, counting the shots
 more than 1 m and 3 m off and those more than 3 m off that carry no flag (status other
@@ -36,12 +42,15 @@ from lidarinv.io import (
     read_gedi_l2b,
     read_lvis_l2,
 )
-from lidarinv.observe import Observation, analyse, processing_settings
+from lidarinv.observe import Observation, analyse, processing_settings, rh_metrics
+from lidarinv.observe.signal import smooth
 from lidarinv.observe.terrain import TERRAIN_FLAG, file_dem, flag_terrain
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_DATA = HERE.parent.parent / "shared" / "data" / "real"
 QUANTITIES = ("ground", "rh50", "rh98", "rh100", "cover")
+#: Percentiles compared one by one (those LVIS L2 gives from RH10 up).
+PROFILE_PERCENTILES = (10, 25, 50, 75, 90, 95, 96, 97, 98, 99, 100)
 #: Flags that tell a user the ground may be wrong (besides a status other than ok).
 GROUND_WARNINGS = ("ground ambiguous", TERRAIN_FLAG)
 
@@ -79,6 +88,49 @@ def differences(pairs) -> dict:
         "p90_abs": float(np.percentile(np.abs(d), 90)),
         "max_abs": float(np.max(np.abs(d))),
         "within_1m": float(np.mean(np.abs(d) <= 1.0)),
+    }
+
+
+def rh_profile(rows, product_rh, product_top) -> dict:
+    """Median ours − product at each of :data:`PROFILE_PERCENTILES`, as analysed and with
+    the RH window's top at the product's signal start (same energy, ground and bottom).
+
+    ``product_rh(shot)`` gives the product's 101 RH (NaN where it has none) or None to
+    skip the shot; ``product_top(shot)`` its signal start (m, on the shot's axis)."""
+    levels = np.array(PROFILE_PERCENTILES)
+    as_analysed, at_top, start = [], [], []
+    for obs, result, _, shot in rows:
+        theirs = product_rh(shot) if result is not None and result.ok else None
+        if theirs is None:
+            continue
+        top = product_top(shot)
+        settings = processing_settings(result.instrument)
+        energy = smooth(obs.samples, result.smoothing_bins) if settings.rh_smoothed else obs.samples
+        baseline = result.noise.mean if settings.rh_energy == "above-noise" else 0.0
+        theirs = np.asarray(theirs, float)[levels]
+        as_analysed.append(result.rh[levels] - theirs)
+        if np.isfinite(top) and result.signal_end < top:
+            moved = rh_metrics(
+                energy, obs.axis, result.ground, noise_mean=baseline,
+                start=top, end=result.signal_end, percentiles=levels,
+            )  # fmt: skip
+            at_top.append(moved - theirs)
+            start.append(result.signal_start - top)
+
+    def medians(diffs):
+        if not diffs:
+            return {}
+        table = np.array(diffs)
+        return {
+            f"rh{p}": float(np.nanmedian(column)) if np.isfinite(column).any() else None
+            for p, column in zip(levels, table.T)
+        }
+
+    return {
+        "n": len(as_analysed),
+        "signal_start_minus_product_median": float(np.median(start)) if start else None,
+        "as_analysed": medians(as_analysed),
+        "window_top_at_product_start": medians(at_top),
     }
 
 
@@ -153,6 +205,11 @@ def gedi_study(files):
             q: differences((r["ours"][q], r["product"][q]) for r in quality) for q in QUANTITIES
         },
         "cover_ratio": _cover_ratio(quality),
+        "rh_profile": rh_profile(
+            rows,
+            lambda s: l2a[s]["rh"] if s in l2a and l2a[s]["quality_flag"] == 1 else None,
+            lambda s: float(l2a[s]["elev_highestreturn"]),
+        ),
         "ground_all_shots": ground_check(
             rows,
             lambda s: (
@@ -234,6 +291,7 @@ def lvis_groups(rows, l2) -> dict:
             "product_rh98_median": float(np.median(rh98)) if rh98 else float("nan"),
             **_status_counts(members),
             "ground_all_shots": ground_check(members, lambda s, zg=zg: zg.get(s, np.nan)),
+            "rh_profile": _lvis_rh_profile(members, l2),
             "differences": {
                 q: differences(
                     (_ours(r)[q], _lvis_product(l2[s])[q])
@@ -244,6 +302,10 @@ def lvis_groups(rows, l2) -> dict:
             },
         }
     return out
+
+
+def _lvis_rh_profile(rows, l2) -> dict:
+    return rh_profile(rows, lambda s: l2[s]["rh"] if s in l2 else None, lambda s: l2[s]["zt"])
 
 
 def _lvis_product(product) -> dict:
@@ -274,6 +336,7 @@ def lvis_study(files):
             for q in QUANTITIES[:-1]
         },
         "ground_all_shots": ground_check(rows, lambda s: l2[s]["zg"] if s in l2 else np.nan),
+        "rh_profile": _lvis_rh_profile(rows, l2),
         "flight_lines": lvis_groups(rows, l2),
     }
     return summary, rows, records
@@ -385,6 +448,18 @@ def pick_examples(instrument, rows, records):
     return out
 
 
+def _print_profile(profile) -> None:
+    start = profile["signal_start_minus_product_median"]
+    print(f"  RH ours − product (median of {profile['n']} shots; signal start − product's "
+          f"{start:+.3f} m):" if start is not None else "  RH ours − product:")  # fmt: skip
+    for label, key in (
+        ("as analysed", "as_analysed"),
+        ("top at product's", "window_top_at_product_start"),
+    ):
+        cells = [f"{k}:{v:+.2f}" for k, v in profile[key].items() if v is not None]
+        print(f"    {label:17s}" + " ".join(cells))
+
+
 def main(argv=None):
     parser = harness.parser(__doc__)
     parser.add_argument("--data", default=str(DEFAULT_DATA), help="folder, or 'examples'")
@@ -415,12 +490,14 @@ def main(argv=None):
                       f"{d['median_abs']:.3f}  p90 {d['p90_abs']:.3f}  within 1 m "
                       f"{d['within_1m']:.3f}")  # fmt: skip
         print(f"  ground over every shot with one: {part['ground_all_shots']}")
+        _print_profile(part["rh_profile"])
     for lfid, line in lvis["flight_lines"].items():
         label = " (tallest canopy)" if lfid == tall else ""
         print(f"LVIS flight line {lfid}{label}: {line['shots']} shots, L2 RH98 median "
               f"{line['product_rh98_median']:.1f} m, statuses {line['statuses']}, "
               f"flags {line['flags']}")  # fmt: skip
         print(f"  ground over every shot with one: {line['ground_all_shots']}")
+        _print_profile(line["rh_profile"])
     print(f"cover against ρv/ρg: {gedi['cover_ratio']}")
     print(f"wrote {out}")
 

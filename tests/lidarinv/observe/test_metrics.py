@@ -53,6 +53,40 @@ def test_rh_window_limits_and_bad_input():
         rh_metrics(samples, axis, 100.0, start=90.0, end=110.0)
 
 
+def _box_on_a_level(amplitude=10.0, level=2.0, top=20.0, step=0.1):
+    """Bins 0.1 m wide with edges on whole tenths: a rectangular return over [0, top] on a
+    flat level (the recorded noise mean), ground at 0."""
+    axis = np.arange(-100, 400) * step + step / 2
+    inside = (axis > 0.0) & (axis < top)
+    return axis, level + amplitude * inside
+
+
+@pytest.mark.parametrize("start_edge", [30.0, 25.0])
+def test_rh98_of_recorded_counts_follows_the_signal_start(start_edge):
+    # LVIS L2 counts the recorded level as energy: between the signal end (edge −5 m) and
+    # the start edge S, a box of area 10·20 m over a level of 2 holds 200 + 2·(S + 5), and
+    # RH98 lies in the level above the box where 200 + 2·(z + 5) = 0.98 · total
+    axis, samples = _box_on_a_level()
+    start, end = start_edge - 0.05, -5.0 + 0.05  # bin centres
+    rh = rh_metrics(samples, axis, 0.0, start=start, end=end, percentiles=[98])
+    total = 200.0 + 2.0 * (start_edge + 5.0)
+    assert rh[0] == pytest.approx((0.98 * total - 200.0) / 2.0 - 5.0, abs=1e-9)
+    # with the level subtracted (GEDI L2A) the same start leaves RH98 at 0.98 of the box
+    above = rh_metrics(samples, axis, 0.0, noise_mean=2.0, start=start, end=end, percentiles=[98])
+    assert above[0] == pytest.approx(0.98 * 20.0, abs=1e-9)
+
+
+def test_rh98_of_recorded_counts_moves_with_the_start_nearly_metre_for_metre():
+    # d RH98 / d S = 0.98 · level / level = 0.98 (closed form above): a signal start
+    # 0.37 m higher than the product's lifts RH98 by 0.36 m under LVIS L2's convention
+    axis, samples = _box_on_a_level()
+    heights = [
+        rh_metrics(samples, axis, 0.0, start=s - 0.05, end=-4.95, percentiles=[98])[0]
+        for s in (27.0, 28.0)
+    ]
+    assert heights[1] - heights[0] == pytest.approx(0.98, abs=1e-9)
+
+
 def _slab(favd, crown_length=8.0, top=20.0):
     inst = fw.instrument_preset("gedi")
     stand = fw.Stand.from_arrays(x=[0.0], y=[0.0], height=[top], crown_length=[crown_length],
