@@ -132,6 +132,9 @@ def invert_one(job):
     needed = result.diagnostics.get("model_error_needed")
     record["model_error_needed"] = float("nan") if needed is None else float(needed)
     record["misfit"] = any(f.startswith(MISFIT_FLAG) for f in result.flags)
+    for name in ("local_z", "local_threshold", "local_window_m"):  # the local misfit check
+        if name in result.diagnostics:
+            record[name] = result.diagnostics[name]
     if "ground_modes" in result.diagnostics:  # the evidence for each of two grounds
         record["ground_modes"] = result.diagnostics["ground_modes"]
     canopy = result.footprint_canopy()
@@ -223,6 +226,10 @@ def statistics(records, instrument) -> dict:
         "misfit_flagged": int(sum(r.get("predictive_p_value", 1.0) < 0.01 for r in done)),
         # the fit needs a model error above the ceiling, or fails its predictive check
         "misfit_any_flag": int(sum(bool(r.get("misfit")) for r in done)),
+        # residual sums over a stretch of the waveform beyond their replicated spread
+        "misfit_local": int(
+            sum(abs(r.get("local_z", 0.0)) > r.get("local_threshold", np.inf) for r in done)
+        ),
         # where the error was sized at all (not on a window with censored samples)
         "model_error_above_ceiling": int(
             sum(
