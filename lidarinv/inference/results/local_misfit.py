@@ -111,8 +111,8 @@ def local_misfit(observed, replicated, mean, baseline, axis, least_width, false_
         windows where none does), with its sign (positive: the waveform holds energy the
         fit leaves out);
         ``local_threshold``; ``local_window_m``: the window's lowest and highest bin
-        centre (m); ``local_excess``: the mean residual sum there over the fit's own sum
-        there (a fraction of the modelled energy; inf where the fit has none).
+        centre (m); ``local_excess``: the mean residual sum there over the fit's whole return
+        energy (inf where the fit has none).
     """
     observed = np.asarray(observed, float)
     replicated, mean = np.atleast_2d(replicated), np.atleast_2d(mean)
@@ -136,7 +136,7 @@ def local_misfit(observed, replicated, mean, baseline, axis, least_width, false_
     worst = int(np.flatnonzero(among)[np.argmax(np.abs(z[among]))])
     start, stop = spans[worst]
     baseline = np.asarray(baseline, float).reshape(-1, 1)
-    modelled = float(np.mean(np.sum(mean[:, start:stop] - baseline, axis=1)))
+    modelled = float(np.mean(np.sum(mean - baseline, axis=1)))  # the fit's return energy
     return {
         "local_misfit": bool(abs(z[worst]) > threshold),
         "local_z": float(z[worst]),
@@ -154,7 +154,9 @@ def describe_local_misfit(check) -> list:
     what = "energy the fit leaves out" if check["local_z"] > 0 else "less energy than the fit"
     excess = check["local_excess"]
     amount = (
-        "" if not np.isfinite(excess) else f" ({100 * abs(excess):.0f} % of the fit's energy there)"
+        ""
+        if not np.isfinite(excess)
+        else f" ({100 * abs(excess):.1f} % of the fit's return energy)"
     )
     return [
         f"{MISFIT_FLAG}: between {low:.1f} and {high:.1f} m the waveform holds {what}{amount}, "
