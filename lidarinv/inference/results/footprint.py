@@ -166,7 +166,8 @@ def _bare_cdf(pulse, broadening_m, offsets) -> np.ndarray:
     """A bare ground's return's cumulative fraction at ``offsets`` (n, k) (m from its peak),
     the pulse widened by each row's broadening (n,) taken to the nearest of
     :data:`_BROADENING_GRID` values."""
-    grid = np.unique(np.linspace(np.min(broadening_m), np.max(broadening_m), _BROADENING_GRID))
+    low, high = np.nanmin(broadening_m), np.nanmax(broadening_m)
+    grid = np.unique(np.linspace(low, high, _BROADENING_GRID))
     nearest = np.abs(np.asarray(broadening_m)[:, None] - grid[None, :]).argmin(axis=1)
     out = np.empty(offsets.shape)
     for j in np.unique(nearest):
