@@ -152,8 +152,8 @@ def _canopy_lines(result, canopy) -> list:
     if np.isfinite(p_bare):
         lines.append(
             f"  {'P(no canopy return)':<28}{p_bare:8.2f}    the footprint's waveform shows "
-            "no return above a bare ground's (under the widest broadening the posterior "
-            "allows) that stands out of the noise"
+            "no return above a bare ground's (the pulse under the fitted broadening) that "
+            "stands out of the noise"
         )
         if p_bare >= 0.5:
             lines[-1] += (

@@ -8,7 +8,6 @@ from lidarinv.observe.instrument import ground_return_cdf
 
 from ..model.tallest_stem import disc_area
 from ..problem import InversionProblem
-from .result import QUANTILES
 
 #: Derived quantity: per sample, the probability that no stem stands within the footprint;
 #: its posterior mean is the probability that the footprint holds no tree.
@@ -19,9 +18,6 @@ FOOTPRINT_NO_STEM = "footprint_no_stem_probability"
 #: canopy's return above a bare ground's lies within the noise), else 0 (NaN where the
 #: sample has no footprint waveform).
 FOOTPRINT_BARE = "footprint_bare"
-#: The widest broadening the posterior allows: the upper end of the 90 % interval the
-#: results report (:data:`.result.QUANTILES`), as a percentile.
-ALLOWED_BROADENING_PERCENTILE = QUANTILES[-1]
 #: The level (noise σ of a matched filter's output) a canopy return must reach to be seen:
 #: the one-sided Gaussian level of one test at the ground search's false-alarm probability
 #: (:data:`lidarinv.observe.ground_candidates.FALSE_ALARM`).
@@ -61,32 +57,6 @@ def bare_ground_rh98(pulse, broadening_m, bin_m) -> np.ndarray:
     return np.interp(broadening, np.unique(grid), heights) + float(bin_m)
 
 
-def allowed_broadening(broadening_m) -> np.ndarray:
-    """The widest broadening of the pulse the posterior allows, for each sample: its own or
-    the posterior's :data:`ALLOWED_BROADENING_PERCENTILE`, whichever is wider.
-
-    The broadening and a low canopy trade off: a sample may narrow the ground's return
-    and fill its upper flank with low vegetation, and the waveform cannot tell the two
-    apart (the lower flank fixes the broadening only to within its prior). A return is
-    then no wider than a bare ground's if a broadening the posterior allows explains it.
-
-    Parameters
-    ----------
-    broadening_m : array (n,) (m)
-        Posterior samples of the pulse broadening σ.
-
-    Returns
-    -------
-    array (n,) (m)
-        NaN where a sample's broadening is NaN.
-    """
-    broadening = np.asarray(broadening_m, float)
-    finite = broadening[np.isfinite(broadening)]
-    if not finite.size:
-        return broadening.copy()
-    return np.maximum(broadening, np.percentile(finite, ALLOWED_BROADENING_PERCENTILE))
-
-
 def canopy_return_sigmas(problem: InversionProblem, x) -> np.ndarray:
     """How far each sample's return above a bare ground's stands out of the noise.
 
@@ -94,28 +64,26 @@ def canopy_return_sigmas(problem: InversionProblem, x) -> np.ndarray:
     ----------
     problem : InversionProblem
     x : array (n, ndim)
-        Posterior samples (physical units), all of one posterior: the widest broadening
-        it allows is taken over them (:func:`allowed_broadening`).
+        Posterior samples (physical units).
 
     Returns
     -------
     array (n,)
         S/σ of the matched filter of the sample's excess e over a bare ground: e (DN) is
         its waveform (widened by its broadening, scaled by its gain) less a bare ground's
-        return of the same energy under the widest broadening the posterior allows, where
-        positive, over the bins above that bare ground's RH98 (:func:`bare_ground_rh98`);
-        S = Σ e², σ the noise of Σ e·n under the shot's measured σ and autocorrelation.
-        Low vegetation and a wider ground trade off within the ground's return, and the
-        waveform cannot tell them apart: only what a bare ground cannot return counts.
-        The gain is the sample's, or where it is marginalised the least-squares gain of
-        its waveform to the recorded one. NaN where the sample is no stand.
+        return of the same energy under the same broadening, peaking where the waveform's
+        ground return peaks, where positive, over the bins above that bare ground's RH98
+        (:func:`bare_ground_rh98`); S = Σ e², σ the noise of Σ e·n under the shot's
+        measured σ and autocorrelation. Low vegetation within the ground's return shifts
+        its peak up and the sample's ground down, and the waveform cannot tell it from a
+        ground: only what a bare ground cannot return counts. The gain is the sample's, or
+        where it is marginalised the least-squares gain of its waveform to the recorded
+        one. NaN where the sample is no stand.
     """
     model, window, noise = problem.log_posterior.model, problem.window, problem.analysis.noise
     values = problem.space.values(x)
     n = x.shape[0]
-    broadening = allowed_broadening(
-        np.asarray(values.get("pulse_broadening", np.zeros(n)), float) * np.ones(n)
-    )
+    broadening = np.asarray(values.get("pulse_broadening", np.zeros(n)), float) * np.ones(n)
     bin_m = float(window.axis[1] - window.axis[0])
     pulse = problem.instrument.pulse
     reach = bare_ground_rh98(pulse, broadening, bin_m)
@@ -199,7 +167,7 @@ def footprint_bare(problem: InversionProblem, x, rh98) -> np.ndarray:
     ----------
     problem : InversionProblem
     x : array (n, ndim)
-        Posterior samples (physical units), all of one posterior.
+        Posterior samples (physical units).
     rh98 : array (n,) (m)
         The RH98 of each sample's footprint waveform: NaN marks a sample without one.
 
@@ -211,7 +179,7 @@ def footprint_bare(problem: InversionProblem, x, rh98) -> np.ndarray:
         waveform is one of a bare ground, whatever stems the sample's stand holds; NaN where
         the RH98 is NaN or the sample is no stand. Averaged over the posterior, P(the
         footprint's waveform shows no canopy | y). Judged by the footprint's RH98 against
-        a bare ground's instead, a waveform the data cannot tell from a bare ground is
+        its bare ground's instead, a waveform the data cannot tell from a bare ground is
         judged by a coin's toss: its samples spread their RH98 about the bare ground's by
         what the noise hides in the return's top 2 %.
     """
