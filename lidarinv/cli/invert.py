@@ -92,17 +92,21 @@ def headline(result) -> str:
     """The footprint's canopy height and cover, then what ``top_height`` is: the lines
     ``lidarinv invert`` prints before the full table."""
     summary = result.summary()
+    canopy = result.footprint_canopy()
     lines = [f"shot {result.shot_id}: the footprint (median, 90 % interval)"]
+    lines += _seen_canopy_lines(canopy)
     for name, label, meaning in HEADLINE:
         if name not in summary or not np.isfinite(summary[name]["median"]):
             continue  # e.g. no footprint RH where the likelihood cannot condition on y
+        if name == "footprint_top_height" and canopy is not None:
+            continue  # its canopy height as the waveform supports it, above
         row = summary[name]
         units = "" if row["units"] in ("", "1") else f" {row['units']}"
         lines.append(
             f"  {label:<28}{row['median']:8.3g}{units}  [{row['p05']:.3g}, {row['p95']:.3g}]"
             f"  {meaning}"
         )
-    lines += _canopy_lines(result)
+    lines += _canopy_lines(result, canopy)
     if "top_height" in summary:
         row = summary["top_height"]
         lines.append(
@@ -113,10 +117,28 @@ def headline(result) -> str:
     return "\n".join(lines)
 
 
-def _canopy_lines(result) -> list:
-    """Whether the footprint holds a tree at all, and its height if it does: a bare
-    footprint's canopy height is the zero of most draws, not the top of a stand."""
-    canopy = result.footprint_canopy()
+def _seen_canopy_lines(canopy) -> list:
+    """The headline's canopy height: the footprint's tallest stem where its waveform shows
+    a canopy, 0 where it shows none, with the probability that it shows none."""
+    if canopy is None:
+        return []
+    height, p_none = canopy["height"], canopy["none_probability"]
+    lines = [
+        f"  {'canopy height':<28}{height['median']:8.3g} m  [{height['p05']:.3g}, "
+        f"{height['p95']:.3g}]  tallest stem within the footprint's 1/e² radius where its "
+        "waveform shows a canopy, 0 where it shows none (compare with RH98)",
+        f"  {'P(no canopy in footprint)':<28}{p_none:8.2f}    no stem, or none whose return "
+        "the waveform can tell from a bare ground's",
+    ]
+    if p_none >= 0.5:
+        lines[-1] += ": the footprint more likely holds no canopy"
+    return lines
+
+
+def _canopy_lines(result, canopy) -> list:
+    """Whether the footprint holds a tree at all, whether its waveform sees one, and the
+    height of the canopy it sees if it sees one: a bare footprint's canopy height is the
+    zero of most draws, not the top of a stand."""
     if canopy is None:
         return []
     p_none, given = canopy["no_tree_probability"], canopy["height_given_canopy"]
@@ -130,17 +152,27 @@ def _canopy_lines(result) -> list:
     if np.isfinite(p_bare):
         lines.append(
             f"  {'P(no canopy return)':<28}{p_bare:8.2f}    the footprint's waveform shows "
-            "nothing above a bare ground's return (its RH98 within the ground return's)"
+            "no return above a bare ground's (the pulse under the fitted broadening) that "
+            "stands out of the noise"
         )
         if p_bare >= 0.5:
             lines[-1] += (
-                ": the footprint more likely holds no canopy the waveform sees; the canopy "
-                "height is that of stems it cannot see"
+                ": the footprint more likely holds no canopy the waveform sees; its stems "
+                "are ones it cannot see"
             )
     if np.isfinite(given["median"]):
         lines.append(
             f"  {'canopy height if any':<28}{given['median']:8.3g} m  [{given['p05']:.3g}, "
-            f"{given['p95']:.3g}]  the tallest stem, given the footprint holds one"
+            f"{given['p95']:.3g}]  the tallest stem, given the footprint holds one its "
+            "waveform sees"
+        )
+    summary = result.summary()
+    if "footprint_top_height" in summary:  # every stem, seen or not
+        row = summary["footprint_top_height"]
+        lines.append(
+            f"  {'tallest stem':<28}{row['median']:8.3g} m  [{row['p05']:.3g}, "
+            f"{row['p95']:.3g}]  within the footprint's 1/e² radius, whether or not the "
+            "waveform sees it"
         )
     return lines
 

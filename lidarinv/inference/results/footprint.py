@@ -3,6 +3,7 @@ at all, and whether its own waveform shows anything above its ground's return.""
 
 import numpy as np
 
+from lidarinv.observe.ground_candidates import FALSE_ALARM, significance_sigmas
 from lidarinv.observe.instrument import ground_return_cdf
 
 from ..model.tallest_stem import disc_area
@@ -13,9 +14,16 @@ from ..problem import InversionProblem
 FOOTPRINT_NO_STEM = "footprint_no_stem_probability"
 
 
-#: Derived quantity: per sample, 1 where the footprint's own waveform holds nothing above its
-#: ground's return (its RH98 no higher than a bare ground's), else 0 (NaN without an RH98).
+#: Derived quantity: per sample, 1 where the footprint's waveform shows no canopy return (its
+#: canopy's return above a bare ground's lies within the noise), else 0 (NaN where the
+#: sample has no footprint waveform).
 FOOTPRINT_BARE = "footprint_bare"
+#: The level (noise σ of a matched filter's output) a canopy return must reach to be seen:
+#: the one-sided Gaussian level of one test at the ground search's false-alarm probability
+#: (:data:`lidarinv.observe.ground_candidates.FALSE_ALARM`).
+CANOPY_DETECTION_SIGMAS = significance_sigmas(1.0, FALSE_ALARM)
+#: Posterior samples evaluated at once.
+_CHUNK = 1024
 #: Broadenings on which a bare ground's RH98 is computed, then interpolated per sample.
 _BROADENING_GRID = 24
 
@@ -49,8 +57,111 @@ def bare_ground_rh98(pulse, broadening_m, bin_m) -> np.ndarray:
     return np.interp(broadening, np.unique(grid), heights) + float(bin_m)
 
 
+def canopy_return_sigmas(problem: InversionProblem, x) -> np.ndarray:
+    """How far each sample's return above a bare ground's stands out of the noise.
+
+    Parameters
+    ----------
+    problem : InversionProblem
+    x : array (n, ndim)
+        Posterior samples (physical units).
+
+    Returns
+    -------
+    array (n,)
+        S/σ of the matched filter of the sample's excess e over a bare ground: e (DN) is
+        its waveform (widened by its broadening, scaled by its gain) less a bare ground's
+        return of the same energy under the same broadening, peaking where the waveform's
+        ground return peaks, where positive, over the bins above that bare ground's RH98
+        (:func:`bare_ground_rh98`); S = Σ e², σ the noise of Σ e·n under the shot's
+        measured σ and autocorrelation. Low vegetation within the ground's return shifts
+        its peak up and the sample's ground down, and the waveform cannot tell it from a
+        ground: only what a bare ground cannot return counts. The gain is the sample's, or
+        where it is marginalised the least-squares gain of its waveform to the recorded
+        one. NaN where the sample is no stand.
+    """
+    model, window, noise = problem.log_posterior.model, problem.window, problem.analysis.noise
+    values = problem.space.values(x)
+    n = x.shape[0]
+    broadening = np.asarray(values.get("pulse_broadening", np.zeros(n)), float) * np.ones(n)
+    bin_m = float(window.axis[1] - window.axis[0])
+    pulse = problem.instrument.pulse
+    reach = bare_ground_rh98(pulse, broadening, bin_m)
+    edges = np.append(window.axis - 0.5 * bin_m, window.axis[-1] + 0.5 * bin_m)
+    lags = _noise_lags(noise.autocorrelation)
+    sigmas = np.full(n, np.nan)
+    for first in range(0, n, _CHUNK):
+        rows = slice(first, first + _CHUNK)
+        part = {k: v[rows] if np.ndim(v) else v for k, v in values.items()}
+        vectors, _ = model.mapping.model_vectors(part)
+        expected = model.expected.evaluate(vectors)
+        whole = model.widen(expected.samples, part)
+        gain = part.get("gain")
+        if gain is None:  # marginalised: the least-squares gain of the whole waveform
+            baseline = part.get("baseline", np.full(whole.shape[0], noise.mean))
+            recorded = window.samples[None, :] - np.asarray(baseline)[..., None]
+            power = np.sum(whole * whole, axis=1)
+            gain = np.sum(whole * recorded, axis=1) / np.where(power > 0, power, np.inf)
+        peak = _ground_peak(whole, window.axis, part["ground_elevation"], reach[rows])
+        offsets = edges[None, :] - peak[:, None]
+        bare = np.diff(_bare_cdf(pulse, broadening[rows], offsets), axis=1)
+        excess = whole - np.sum(whole, axis=1, keepdims=True) * bare
+        above = window.axis[None, :] > (peak + reach[rows])[:, None]
+        e = np.where(above, np.clip(excess, 0.0, None), 0.0) * np.asarray(gain)[:, None]
+        signal = np.sum(e * e, axis=1)
+        spread = noise.sigma * np.sqrt(np.maximum(_lagged_power(e, lags), 0.0))
+        ratio = np.where(spread > 0, signal / np.where(spread > 0, spread, 1.0), 0.0)
+        sigmas[rows] = np.where(expected.valid, ratio, np.nan)
+    return sigmas
+
+
+def _ground_peak(waveforms, axis, ground, reach) -> np.ndarray:
+    """Where each row's ground return peaks (m): its waveform's maximum within ``reach``
+    (n,) of its ground (n,), refined by the parabola through the three highest bins. Low
+    vegetation shifts the return's peak above the sample's ground, and the ground below
+    it: the return's own peak is where a bare ground would have returned it."""
+    near = np.abs(axis[None, :] - np.asarray(ground)[:, None]) <= np.asarray(reach)[:, None]
+    k = np.argmax(np.where(near, waveforms, -np.inf), axis=1)
+    k = np.clip(k, 1, axis.size - 2)
+    rows = np.arange(waveforms.shape[0])
+    a, b, c = (waveforms[rows, k + j] for j in (-1, 0, 1))
+    curvature = a - 2.0 * b + c
+    shift = np.where(curvature < 0, 0.5 * (a - c) / np.where(curvature < 0, curvature, -1.0), 0.0)
+    return axis[k] + np.clip(shift, -0.5, 0.5) * (axis[1] - axis[0])
+
+
+def _bare_cdf(pulse, broadening_m, offsets) -> np.ndarray:
+    """A bare ground's return's cumulative fraction at ``offsets`` (n, k) (m from its peak),
+    the pulse widened by each row's broadening (n,) taken to the nearest of
+    :data:`_BROADENING_GRID` values."""
+    low, high = np.nanmin(broadening_m), np.nanmax(broadening_m)
+    grid = np.unique(np.linspace(low, high, _BROADENING_GRID))
+    nearest = np.abs(np.asarray(broadening_m)[:, None] - grid[None, :]).argmin(axis=1)
+    out = np.empty(offsets.shape)
+    for j in np.unique(nearest):
+        rows = nearest == j
+        out[rows] = ground_return_cdf(pulse, float(grid[j]))(offsets[rows])
+    return out
+
+
+def _noise_lags(autocorrelation) -> np.ndarray:
+    """The noise's autocorrelation up to its first non-positive lag (the usual truncation of
+    a sample autocorrelation, as :func:`lidarinv.observe.noise.filtered_sigma` makes it)."""
+    r = np.asarray(autocorrelation, float)
+    stop = np.flatnonzero(r <= 0)
+    return r[: stop[0]] if stop.size else r
+
+
+def _lagged_power(c, lags) -> np.ndarray:
+    """Σ_ij c_i c_j R(|i − j|) per row of ``c``."""
+    total = np.sum(c * c, axis=1)
+    for k in range(1, min(lags.size, c.shape[1])):
+        total += 2.0 * lags[k] * np.sum(c[:, k:] * c[:, :-k], axis=1)
+    return total
+
+
 def footprint_bare(problem: InversionProblem, x, rh98) -> np.ndarray:
-    """Whether each sample's footprint shows no return above its ground's (1) or does (0).
+    """Whether each sample's footprint waveform shows no canopy return (1) or does (0).
 
     Parameters
     ----------
@@ -58,21 +169,23 @@ def footprint_bare(problem: InversionProblem, x, rh98) -> np.ndarray:
     x : array (n, ndim)
         Posterior samples (physical units).
     rh98 : array (n,) (m)
-        The RH98 of each sample's footprint waveform (NaN where unknown).
+        The RH98 of each sample's footprint waveform: NaN marks a sample without one.
 
     Returns
     -------
     array (n,)
-        1 where the RH98 lies within a bare ground's (:func:`bare_ground_rh98`, under the
-        sample's pulse broadening): what the waveform sees of the footprint is a ground
-        return, whatever stems the stand may hold there; NaN where the RH98 is NaN.
+        1 where the sample's canopy return above a bare ground's (:func:`canopy_return_sigmas`)
+        stays below :data:`CANOPY_DETECTION_SIGMAS`: the noise would hide it, and the
+        waveform is one of a bare ground, whatever stems the sample's stand holds; NaN where
+        the RH98 is NaN or the sample is no stand. Averaged over the posterior, P(the
+        footprint's waveform shows no canopy | y). Judged by the footprint's RH98 against
+        its bare ground's instead, a waveform the data cannot tell from a bare ground is
+        judged by a coin's toss: its samples spread their RH98 about the bare ground's by
+        what the noise hides in the return's top 2 %.
     """
-    values = problem.space.values(x)
-    broadening = values.get("pulse_broadening", np.zeros(x.shape[0]))
-    bin_m = float(problem.window.axis[1] - problem.window.axis[0])
-    bare = bare_ground_rh98(problem.instrument.pulse, broadening, bin_m)
-    rh98 = np.asarray(rh98, float)
-    return np.where(np.isfinite(rh98), (rh98 <= bare).astype(float), np.nan)
+    sigmas = canopy_return_sigmas(problem, x)
+    known = np.isfinite(np.asarray(rh98, float)) & np.isfinite(sigmas)
+    return np.where(known, (sigmas < CANOPY_DETECTION_SIGMAS).astype(float), np.nan)
 
 
 def footprint_no_stem(problem: InversionProblem, density_per_ha) -> np.ndarray:

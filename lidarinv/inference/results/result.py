@@ -141,7 +141,7 @@ class InversionResult:
         return out
 
     def footprint_canopy(self) -> dict | None:
-        """The footprint's canopy: how likely it holds no tree, and its height if it holds one.
+        """The footprint's canopy: how likely it holds none, and its height if it holds one.
 
         Returns
         -------
@@ -149,24 +149,33 @@ class InversionResult:
             ``no_tree_probability``: the posterior mean of
             ``footprint_no_stem_probability``, P(no stem within the footprint's disc | y);
             ``bare_probability``: the posterior mean of ``footprint_bare``, P(the
-            footprint's waveform shows nothing above its ground return | y) (NaN where
+            footprint's waveform shows nothing above a bare ground's return | y) (NaN where
             not drawn);
-            ``height_given_canopy``: quantiles (as :meth:`summary`'s rows, m) of the
-            footprint's tallest stem among the samples whose draw holds one (NaN where
-            none does). None for a result without these quantities.
+            ``none_probability``: P(the footprint holds no canopy its waveform sees | y), the
+            share of samples whose footprint draws no stem or whose waveform shows no
+            canopy return;
+            ``height``: quantiles (as :meth:`summary`'s rows, m) of the footprint's canopy
+            height as its waveform supports it: the tallest stem where the waveform shows
+            a canopy, 0 where it shows none or no stem stands (:func:`seen_canopy_height`);
+            ``height_given_canopy``: the same quantiles among the samples with a canopy
+            (NaN where none has one). None for a result without these quantities.
         """
         if "footprint_no_stem_probability" not in self.derived:
             return None
         no_stem = self.derived["footprint_no_stem_probability"]
-        top = self.column("footprint_top_height")
-        standing = top[np.isfinite(top) & (top > 0.0)]
-        q = np.percentile(standing, QUANTILES) if standing.size else np.full(5, np.nan)
+        height = seen_canopy_height(self.column("footprint_top_height"), self.derived)
+        height = height[np.isfinite(height)]
+        standing = height[height > 0.0]
         bare = self.derived.get("footprint_bare", np.array([np.nan]))
         bare = bare[np.isfinite(bare)]
         return {
             "no_tree_probability": float(np.mean(no_stem[np.isfinite(no_stem)])),
             "bare_probability": float(np.mean(bare)) if bare.size else float("nan"),
-            "height_given_canopy": {label: float(v) for label, v in zip(_LABELS, q)},
+            "none_probability": float(1.0 - standing.size / height.size)
+            if height.size
+            else float("nan"),
+            "height": _quantiles(height),
+            "height_given_canopy": _quantiles(standing),
         }
 
     def summary_table(self) -> str:
@@ -236,8 +245,9 @@ class InversionResult:
         if canopy is not None:
             row["footprint_no_tree_probability"] = canopy["no_tree_probability"]
             row["footprint_bare_probability"] = canopy["bare_probability"]
-            given = canopy["height_given_canopy"]
-            row.update({f"footprint_height_given_canopy_{k}": given[k] for k in _LABELS})
+            row["footprint_no_canopy_probability"] = canopy["none_probability"]
+            for key in ("height", "height_given_canopy"):
+                row.update({f"footprint_{key}_{k}": canopy[key][k] for k in _LABELS})
         for name, stats in self.summary().items():
             row.update({f"{name}_{label}": stats[label] for label in _LABELS})
         return row
@@ -359,6 +369,36 @@ class InversionResult:
             if name not in handle:
                 raise ValueError(f"{path}: no posterior group {name!r} (have {list(handle)})")
             return cls.read(handle[name])
+
+
+def seen_canopy_height(top_height, derived) -> np.ndarray:
+    """The footprint's canopy height as its waveform supports it, per sample.
+
+    Parameters
+    ----------
+    top_height : array (n,) (m)
+        The footprint's tallest stem per sample (0 where it draws none).
+    derived : dict
+        The result's derived quantities; ``footprint_bare`` (1 where the sample's footprint
+        waveform shows nothing above a bare ground's return) where drawn.
+
+    Returns
+    -------
+    array (n,) (m)
+        The tallest stem, or 0 where the sample's waveform shows no canopy return: stems
+        whose crowns return nothing the waveform can tell from the ground are no canopy
+        it measures (a result without ``footprint_bare`` keeps the tallest stem).
+    """
+    top = np.asarray(top_height, float)
+    bare = np.asarray(derived.get("footprint_bare", np.zeros(top.shape)), float)
+    return np.where(bare == 1.0, 0.0, top)
+
+
+def _quantiles(values) -> dict:
+    """:data:`QUANTILES` of finite values, labelled as :meth:`InversionResult.summary`'s rows
+    (NaN for none)."""
+    q = np.percentile(values, QUANTILES) if np.size(values) else np.full(5, np.nan)
+    return {label: float(v) for label, v in zip(_LABELS, q)}
 
 
 def _convergence_lines(quantities) -> list:

@@ -9,10 +9,12 @@ from tiny_results import tiny_result
 from forward.pulse import GaussianPulse
 from lidarinv.cli.invert import headline
 from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
-from lidarinv.inference import InversionSettings, build_problem
+from lidarinv.inference import InversionSettings, build_problem, invert_shot
 from lidarinv.inference.model.tallest_stem import disc_area
 from lidarinv.inference.results.collect import footprint_top_height
 from lidarinv.inference.results.footprint import bare_ground_rh98, footprint_no_stem
+from lidarinv.inference.sampling import SamplerSettings
+from lidarinv.observe.observation import Observation
 
 
 @pytest.fixture(scope="module")
@@ -88,3 +90,70 @@ def test_a_footprint_whose_waveform_shows_no_canopy_says_so():
 def test_a_result_without_the_quantity_has_no_canopy_statement():
     assert tiny_result().footprint_canopy() is None
     assert "P(no tree" not in headline(tiny_result())
+
+
+def _gedi_like_shot(canopy_dn, rng, broadening_m=1.0):
+    """A shot with its own Gaussian transmitted pulse (σ 6.6 ns, about 1 m) whose ground
+    returns the pulse widened by ``broadening_m`` (150 DN high), and a low canopy's return
+    ``canopy_dn`` high about 3 m above it, under 1.5 DN of white noise."""
+    t = np.arange(128.0)
+    transmitted = 10.0 + 200.0 * np.exp(-0.5 * ((t - 40.0) / 6.6) ** 2)
+    transmitted += rng.normal(0.0, 0.5, t.size)
+    axis = np.arange(-15.0, 25.0, 0.15)
+    ground_sigma = np.hypot(6.6 * 0.15, broadening_m)
+    clean = 150.0 * np.exp(-0.5 * (axis / ground_sigma) ** 2)
+    clean += canopy_dn * np.exp(-0.5 * ((axis - 3.0) / 1.0) ** 2)
+    samples = 50.0 + clean + rng.normal(0.0, 1.5, axis.size)
+    return Observation(
+        samples=samples, axis=axis, shot_id="bare", pulse=transmitted, pulse_ns=1.0,
+        instrument="gedi",
+    )  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def quick_settings():
+    quick = SamplerSettings(
+        n_walkers=16, max_steps=200, check_every=100, candidates=256, starts=4, polish=1,
+        fit_steps=(100,),
+    )  # fmt: skip
+    return InversionSettings(cohorts=1, discrepancy_model="observed", sampler=quick)
+
+
+def test_a_bare_ground_with_a_widened_return_holds_no_canopy(quick_settings):
+    """A ground return twice as wide as the pulse and nothing above it: the waveform shows
+    no canopy, and the headline height is the zero of a bare footprint, not the top of a
+    stand of stems whose crowns the noise hides."""
+    shot = _gedi_like_shot(0.0, np.random.default_rng(1))
+    result = invert_shot(shot, quick_settings, rng=np.random.default_rng(0))
+    canopy = result.footprint_canopy()
+    assert canopy["bare_probability"] > 0.6
+    assert canopy["none_probability"] >= canopy["bare_probability"]
+    assert canopy["height"]["median"] == 0.0
+    text = headline(result)
+    assert "the footprint more likely holds no canopy" in text
+    assert text.splitlines()[1].split()[:3] == ["canopy", "height", "0"]
+
+
+def test_a_low_canopy_above_a_widened_ground_is_seen(quick_settings):
+    """A canopy return a tenth of the ground's, 3 m above it: the waveform shows it."""
+    shot = _gedi_like_shot(15.0, np.random.default_rng(1))
+    result = invert_shot(shot, quick_settings, rng=np.random.default_rng(0))
+    canopy = result.footprint_canopy()
+    assert canopy["bare_probability"] < 0.1
+    assert canopy["height"]["median"] > 2.0
+    assert "more likely holds no canopy" not in headline(result)
+
+
+def test_the_headline_height_is_zero_where_the_waveform_sees_no_canopy():
+    """Stems in every draw, but a waveform that shows none in 90 % of them: the canopy
+    height is 0 there, and the height given a canopy keeps the stems it sees."""
+    result = _bare(0.99, p_bare=0.9)
+    canopy = result.footprint_canopy()
+    seen = (result.derived["footprint_bare"] == 0) & (result.derived["footprint_top_height"] > 0)
+    assert canopy["none_probability"] == pytest.approx(1.0 - np.mean(seen))
+    assert canopy["height"]["median"] == 0.0 and canopy["height"]["p95"] > 8.0
+    assert 8.0 < canopy["height_given_canopy"]["median"] < 10.5
+    row = result.summary_row()
+    assert row["footprint_no_canopy_probability"] == pytest.approx(canopy["none_probability"])
+    assert row["footprint_height_median"] == 0.0
+    assert headline(result).splitlines()[1].split()[:3] == ["canopy", "height", "0"]
