@@ -20,6 +20,23 @@ estimated from the largest τ and the measured cost per step.
                                            [--tag _NAME]
 
 Writes studies/output/sampling_coordinates[_TAG]/summary.json and tau.png.
+
+Real shots (issue 46): with ``--data`` (the folder of the real files) the LVIS shots named
+by ``--lvis-shots`` are inverted with the default settings but ``--cohorts`` (2: the
+two-storey stand) for ``--steps`` steps in each coordinate set (``default``, the default
+ridges; ``default+lower-storey-top``, with the lower storey's top coordinate), the same
+seed for each. Reported per run: CPU seconds (the process's own, whatever else shares the
+machine) of the whole inversion and of the sampling, acceptance, the τ the sampler
+reports (emcee's per sampled coordinate; the monitored quantities' from their bulk ESS),
+and τ from the bulk ESS after a fixed burn-in of a quarter of the chain of the reported
+quantities in physical units, of the lower storey's parameters, and of its top height
+H₂ = ρ·H₁ (the same quantities in every coordinate set, so that they compare).
+
+    python studies/sampling_coordinates.py --data ../shared/data/real --lvis-shots ID ...
+                                           [--steps 6000] [--cohorts 2]
+                                           [--coordinates default default+lower-storey-top]
+
+Writes studies/output/sampling_coordinates[_TAG]/real.json.
 """
 
 import harness
@@ -46,8 +63,11 @@ from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
 from lidarinv.inference import InversionSettings, build_problem  # noqa: E402
 from lidarinv.inference.invert import prepare_problem  # noqa: E402
 from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS  # noqa: E402
+from lidarinv.inference.model.coordinates import DEFAULT_RIDGES  # noqa: E402
 from lidarinv.inference.posterior import BLOB_NAMES  # noqa: E402
+from lidarinv.inference.results.reported import REPORTED, reported_monitor  # noqa: E402
 from lidarinv.inference.sampling import run_sampler  # noqa: E402
+from lidarinv.inference.sampling.stopping import quantity_diagnostics  # noqa: E402
 
 #: Coordinate sets compared, by label: changes to InversionSettings (ridge coordinates and
 #: the map of bounded priors to the real line).
@@ -58,7 +78,15 @@ COORDINATES = {
     "cover-pai+ground-centroid": {"ridges": ("cover-pai", "ground-centroid")},
     "all": {"ridges": ("cover-pai", "crown-base", "ground-centroid")},
     "cover-pai/probit": {"ridges": ("cover-pai",), "unbounded": "probit"},
+    "default": {"ridges": DEFAULT_RIDGES},
+    "default+lower-storey-top": {"ridges": (*DEFAULT_RIDGES, "lower-storey-top")},
 }
+
+#: The coordinate sets compared on real shots by default.
+REAL_COORDINATES = ("default", "default+lower-storey-top")
+
+#: The lower storey's parameters and derived top height, whose τ is reported on real shots.
+LOWER_STOREY = ("cohort2_fraction", "cohort2_top_ratio", "cohort2_sd_ratio", "cohort2_top")
 
 #: Derived quantities whose τ is reported besides the parameters.
 DERIVED = ("mean_height", "crown_volume", "lai")
@@ -99,6 +127,83 @@ def run_shot(obs, settings, seed):
     }
 
 
+def physical_draws(problem, run, burn) -> dict:
+    """{name: (steps, walkers)} after ``burn`` of the reported quantities in physical
+    units (sampled ones mapped back from the coordinates) and of :data:`LOWER_STOREY`."""
+    chain, blobs = run.chain[burn:], run.blobs[burn:]
+    steps, walkers, ndim = chain.shape
+    with np.errstate(all="ignore"):
+        x, _ = problem.space.from_unbounded(chain.reshape(-1, ndim))
+    values = problem.space.values(x)
+    blob_names = problem.log_posterior.blob_names
+    out = {}
+    for name in REPORTED:
+        if name in problem.space.names:
+            out[name] = values[name].reshape(steps, walkers)
+        elif name in blob_names:
+            out[name] = blobs[..., blob_names.index(name)]
+    if "cohort2_top_ratio" in values:
+        values["cohort2_top"] = values["cohort2_top_ratio"] * values["top_height"]
+    for name in LOWER_STOREY:
+        if name in values:
+            out[name] = values[name].reshape(steps, walkers)
+    return out
+
+
+def run_real_shot(obs, settings, seed) -> dict:
+    """One fixed-length inversion of a real shot: CPU seconds, acceptance, the τ the
+    sampler reports and the τ of :func:`physical_draws` after a quarter of the chain."""
+    rng = np.random.default_rng(seed)
+    cpu = time.process_time()
+    prepared = prepare_problem(obs, settings, rng)
+    problem = prepared.problem
+    sampling_cpu = time.process_time()
+    run = run_sampler(
+        problem.log_posterior, problem.space, rng, settings.sampler, start=prepared.start,
+        monitor=reported_monitor(problem.space, problem.log_posterior.blob_names),
+    )  # fmt: skip
+    now = time.process_time()
+    steps = run.chain.shape[0]
+    physical = quantity_diagnostics(physical_draws(problem, run, steps // 4))
+    return {
+        "signature": problem.space.signature().split(";")[0],
+        "cpu_seconds": now - cpu,
+        "sampling_cpu_seconds": now - sampling_cpu,
+        "steps": steps,
+        "acceptance": float(np.mean(run.acceptance)),
+        "coordinate_tau": dict(zip(problem.space.names, (float(t) for t in run.tau))),
+        "monitored_tau": {name: d["tau"] for name, d in run.quantities.items()},
+        "physical": physical,
+        "max_reported_tau": float(max(physical[n]["tau"] for n in REPORTED if n in physical)),
+    }
+
+
+def main_real(args):
+    """:func:`run_real_shot` of each real LVIS shot in each coordinate set."""
+    from inversion_speed import real_observations
+
+    shots = real_observations(args.data, "lvis", args.lvis_shots)
+    base = InversionSettings(cohorts=args.cohorts)
+    sampler = replace(base.sampler, max_steps=args.steps, stop_rule="tau", tau_multiple=1e9,
+                      **sampler_changes(args))  # fmt: skip
+    base = replace(base, sampler=sampler)
+    labels = [label for label in args.coordinates if label in COORDINATES]
+    folder = harness.output_folder("sampling_coordinates", args.tag)
+    rows = []
+    for obs, seed in zip(shots, np.random.SeedSequence(args.seed).generate_state(len(shots))):
+        for label in labels:
+            row = {"shot": str(obs.shot_id), "coordinates": label}
+            row.update(run_real_shot(obs, replace(base, **COORDINATES[label]), int(seed)))
+            rows.append(row)
+            brief = {k: row[k] for k in ("shot", "coordinates", "cpu_seconds", "acceptance",
+                                         "max_reported_tau")}  # fmt: skip
+            brief["tau"] = {k: round(v["tau"]) for k, v in row["physical"].items()
+                            if np.isfinite(v["tau"])}  # fmt: skip
+            print(json.dumps(brief), flush=True)
+            harness.write_json(folder / "real.json", {"steps": args.steps, "runs": rows})
+    return rows
+
+
 def plot(summary, path):
     labels = [label for label in COORDINATES if label in summary["shots"][0]]
     width = 0.8 / len(labels)
@@ -122,14 +227,22 @@ def main():
     parser = harness.parser(__doc__, seed=11)
     parser.add_argument("--n", type=int, default=6)
     parser.add_argument("--steps", type=int, default=8000)
-    parser.add_argument("--coordinates", nargs="+", default=list(COORDINATES), choices=COORDINATES)
+    parser.add_argument("--coordinates", nargs="+", choices=COORDINATES)
     parser.add_argument(
         "--discrepancy-model",
         default=InversionSettings().discrepancy_model,
         choices=sorted(DISCREPANCY_MODELS),
     )
+    parser.add_argument("--data", help="the folder of the real files (real LVIS shots)")
+    parser.add_argument("--lvis-shots", nargs="+", help="LVIS shot numbers (with --data)")
+    parser.add_argument("--cohorts", type=int, default=2, help="height cohorts (with --data)")
     add_sampler_options(parser)
     args = parser.parse_args()
+    if args.data:
+        args.coordinates = args.coordinates or list(REAL_COORDINATES)
+        main_real(args)
+        return
+    args.coordinates = args.coordinates or [c for c in COORDINATES if c not in REAL_COORDINATES]
     rng = np.random.default_rng(args.seed)
     base = replace(InversionSettings(discrepancy_model=args.discrepancy_model), **TEN_FREE)
     # a fixed length: τ is compared at equal cost, not at convergence
