@@ -20,6 +20,23 @@ estimated from the largest τ and the measured cost per step.
                                            [--tag _NAME]
 
 Writes studies/output/sampling_coordinates[_TAG]/summary.json and tau.png.
+
+Real shots (issue 46): with ``--data`` (the folder of the real files) the LVIS shots named
+by ``--lvis-shots`` are inverted with the default settings but ``--cohorts`` (2: the
+two-storey stand) for ``--steps`` steps in each coordinate set (``default``, the default
+ridges; ``default+lower-storey-top``, with the lower storey's top coordinate), the same
+seed for each. Reported per run: CPU seconds (the process's own, whatever else shares the
+machine) of the whole inversion and of the sampling, acceptance, the τ the sampler
+reports (emcee's per sampled coordinate; the monitored quantities' from their bulk ESS),
+and τ from the bulk ESS after a fixed burn-in of a quarter of the chain of the reported
+quantities in physical units, of the lower storey's parameters, and of its top height
+H₂ = ρ·H₁ (the same quantities in every coordinate set, so that they compare).
+
+    python studies/sampling_coordinates.py --data ../shared/data/real --lvis-shots ID ...
+                                           [--steps 6000] [--cohorts 2] [--same-start]
+                                           [--coordinates default default+lower-storey-top]
+
+Writes studies/output/sampling_coordinates[_TAG]/real.json.
 """
 
 import harness
@@ -28,6 +45,7 @@ harness.pin_threads()
 
 import json  # noqa: E402
 import time  # noqa: E402
+from contextlib import contextmanager  # noqa: E402
 from dataclasses import replace  # noqa: E402
 
 import emcee  # noqa: E402
@@ -46,8 +64,16 @@ from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
 from lidarinv.inference import InversionSettings, build_problem  # noqa: E402
 from lidarinv.inference.invert import prepare_problem  # noqa: E402
 from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS  # noqa: E402
-from lidarinv.inference.posterior import BLOB_NAMES  # noqa: E402
+from lidarinv.inference.model import coordinates  # noqa: E402
+from lidarinv.inference.model.coordinates import DEFAULT_RIDGES  # noqa: E402
+from lidarinv.inference.model.space import ParameterSpace  # noqa: E402
+from lidarinv.inference.posterior import BLOB_NAMES, LogPosterior  # noqa: E402
+from lidarinv.inference.results.reported import REPORTED, reported_monitor  # noqa: E402
 from lidarinv.inference.sampling import run_sampler  # noqa: E402
+from lidarinv.inference.sampling.stopping import quantity_diagnostics  # noqa: E402
+
+#: Key of a coordinate set's p of the lower storey's top coordinate (not a setting).
+LOWER_POWER = "lower_top_power"
 
 #: Coordinate sets compared, by label: changes to InversionSettings (ridge coordinates and
 #: the map of bounded priors to the real line).
@@ -58,7 +84,20 @@ COORDINATES = {
     "cover-pai+ground-centroid": {"ridges": ("cover-pai", "ground-centroid")},
     "all": {"ridges": ("cover-pai", "crown-base", "ground-centroid")},
     "cover-pai/probit": {"ridges": ("cover-pai",), "unbounded": "probit"},
+    "default": {"ridges": DEFAULT_RIDGES},
+    "default+lower-storey-top": {"ridges": (*DEFAULT_RIDGES, "lower-storey-top")},
+    # p = 1: the crown base's logistic form (LOWER_POWER is not a setting: the study's own)
+    "default+lower-storey-top/p=1": {
+        "ridges": (*DEFAULT_RIDGES, "lower-storey-top"),
+        LOWER_POWER: 1.0,
+    },
 }
+
+#: The coordinate sets compared on real shots by default.
+REAL_COORDINATES = ("default", "default+lower-storey-top")
+
+#: The lower storey's parameters and derived top height, whose τ is reported on real shots.
+LOWER_STOREY = ("cohort2_fraction", "cohort2_top_ratio", "cohort2_sd_ratio", "cohort2_top")
 
 #: Derived quantities whose τ is reported besides the parameters.
 DERIVED = ("mean_height", "crown_volume", "lai")
@@ -99,6 +138,140 @@ def run_shot(obs, settings, seed):
     }
 
 
+@contextmanager
+def lower_top_power(power):
+    """Spaces built inside take p = ``power`` for the lower storey's top (None: the
+    default, :data:`coordinates.LOWER_TOP_WALL_POWER`)."""
+    default = coordinates.LOWER_TOP_WALL_POWER
+    coordinates.LOWER_TOP_WALL_POWER = default if power is None else power
+    try:
+        yield
+    finally:
+        coordinates.LOWER_TOP_WALL_POWER = default
+
+
+def in_coordinates(prepared, changes):
+    """The prepared posterior, start included, in other sampling coordinates: the same
+    parameters, likelihood and physical start."""
+    space = prepared.problem.space
+    with lower_top_power(changes.get(LOWER_POWER)):
+        other = ParameterSpace(space.parameters, changes["ridges"],
+                               changes.get("unbounded", space.unbounded),
+                               space.interception_slope, space.backend)  # fmt: skip
+    posterior = prepared.problem.log_posterior
+    posterior = LogPosterior(other, posterior.model, posterior.likelihood, posterior.favd_range)
+    start = other.to_unbounded(space.from_unbounded(prepared.start)[0])
+    return posterior, start
+
+
+def physical_draws(space, blob_names, run, burn) -> dict:
+    """{name: (steps, walkers)} after ``burn`` of the reported quantities in physical
+    units (sampled ones mapped back from the coordinates) and of :data:`LOWER_STOREY`."""
+    chain, blobs = run.chain[burn:], run.blobs[burn:]
+    steps, walkers, ndim = chain.shape
+    with np.errstate(all="ignore"):
+        x, _ = space.from_unbounded(chain.reshape(-1, ndim))
+    values = space.values(x)
+    out = {}
+    for name in REPORTED:
+        if name in space.names:
+            out[name] = values[name].reshape(steps, walkers)
+        elif name in blob_names:
+            out[name] = blobs[..., blob_names.index(name)]
+    if "cohort2_top_ratio" in values:
+        values["cohort2_top"] = values["cohort2_top_ratio"] * values["top_height"]
+    for name in LOWER_STOREY:
+        if name in values:
+            out[name] = values[name].reshape(steps, walkers)
+    return out
+
+
+def run_real_shot(obs, settings, changes, seed, prepared=None) -> dict:
+    """One fixed-length inversion of a real shot in the coordinates ``changes``: CPU
+    seconds, acceptance, the τ the sampler reports and the τ of :func:`physical_draws`
+    after a quarter of the chain. From ``prepared`` (its posterior and start, mapped to
+    these coordinates) if given, else prepared in them."""
+    rng = np.random.default_rng(seed)
+    cpu = time.process_time()
+    if prepared is None:
+        settings = replace(settings, **{k: v for k, v in changes.items() if k != LOWER_POWER})
+        with lower_top_power(changes.get(LOWER_POWER)):
+            prepared = prepare_problem(obs, settings, rng)
+        posterior, start = prepared.problem.log_posterior, prepared.start
+    else:
+        posterior, start = in_coordinates(prepared, changes)
+    space = posterior.space
+    sampling_cpu = time.process_time()
+    run = run_sampler(
+        posterior, space, rng, settings.sampler, start=start,
+        monitor=reported_monitor(space, posterior.blob_names),
+    )  # fmt: skip
+    now = time.process_time()
+    steps = run.chain.shape[0]
+    draws = physical_draws(space, posterior.blob_names, run, steps // 4)
+    physical = quantity_diagnostics(draws)
+    return {
+        "signature": space.signature().split(";")[0],
+        "cpu_seconds": now - cpu,
+        "sampling_cpu_seconds": now - sampling_cpu,
+        "steps": steps,
+        "acceptance": float(np.mean(run.acceptance)),
+        "coordinate_tau": dict(zip(space.names, (float(t) for t in run.tau))),
+        "monitored_tau": {name: d["tau"] for name, d in run.quantities.items()},
+        "physical": physical,
+        "max_reported_tau": float(max(physical[n]["tau"] for n in REPORTED if n in physical)),
+        "posterior": storey_shape(draws),
+    }
+
+
+def storey_shape(draws) -> dict:
+    """5/50/95 % quantiles of the top heights and the lower storey's ratio, and the
+    correlations along the ridge: corr(H₁, ρ) and corr(H₁, H₂)."""
+    if "cohort2_top" not in draws:
+        return {}
+    names = ("top_height", "cohort2_top_ratio", "cohort2_top", "cohort2_fraction")
+    out = {n: [float(q) for q in np.percentile(draws[n], (5, 50, 95))] for n in names}
+    top, ratio, lower = (draws[n].ravel() for n in names[:3])
+    out["corr_top_ratio"] = float(np.corrcoef(top, ratio)[0, 1])
+    out["corr_top_lower_top"] = float(np.corrcoef(top, lower)[0, 1])
+    return out
+
+
+def main_real(args):
+    """:func:`run_real_shot` of each real LVIS shot in each coordinate set."""
+    from inversion_speed import real_observations
+
+    shots = real_observations(args.data, "lvis", args.lvis_shots)
+    base = InversionSettings(cohorts=args.cohorts)
+    sampler = replace(base.sampler, max_steps=args.steps, stop_rule="tau", tau_multiple=1e9,
+                      **sampler_changes(args))  # fmt: skip
+    base = replace(base, sampler=sampler)
+    labels = [label for label in args.coordinates if label in COORDINATES]
+    folder = harness.output_folder("sampling_coordinates", args.tag)
+    rows = []
+    for obs, seed in zip(shots, np.random.SeedSequence(args.seed).generate_state(len(shots))):
+        shared, prepare_cpu = None, 0.0
+        if args.same_start:  # one posterior and start, prepared in the first coordinates
+            cpu = time.process_time()
+            first = COORDINATES[labels[0]]
+            settings = replace(base, **{k: v for k, v in first.items() if k != LOWER_POWER})
+            shared = prepare_problem(obs, settings, np.random.default_rng(int(seed)))
+            prepare_cpu = time.process_time() - cpu
+        for label in labels:
+            row = {"shot": str(obs.shot_id), "coordinates": label, "same_start": args.same_start}
+            row.update(run_real_shot(obs, base, COORDINATES[label], int(seed), shared))
+            row["cpu_seconds"] += prepare_cpu
+            rows.append(row)
+            brief = {k: row[k] for k in ("shot", "coordinates", "cpu_seconds", "acceptance",
+                                         "max_reported_tau")}  # fmt: skip
+            brief["posterior"] = row["posterior"]
+            brief["tau"] = {k: round(v["tau"]) for k, v in row["physical"].items()
+                            if np.isfinite(v["tau"])}  # fmt: skip
+            print(json.dumps(brief), flush=True)
+            harness.write_json(folder / "real.json", {"steps": args.steps, "runs": rows})
+    return rows
+
+
 def plot(summary, path):
     labels = [label for label in COORDINATES if label in summary["shots"][0]]
     width = 0.8 / len(labels)
@@ -122,14 +295,28 @@ def main():
     parser = harness.parser(__doc__, seed=11)
     parser.add_argument("--n", type=int, default=6)
     parser.add_argument("--steps", type=int, default=8000)
-    parser.add_argument("--coordinates", nargs="+", default=list(COORDINATES), choices=COORDINATES)
+    parser.add_argument("--coordinates", nargs="+", choices=COORDINATES)
     parser.add_argument(
         "--discrepancy-model",
         default=InversionSettings().discrepancy_model,
         choices=sorted(DISCREPANCY_MODELS),
     )
+    parser.add_argument("--data", help="the folder of the real files (real LVIS shots)")
+    parser.add_argument("--lvis-shots", nargs="+", help="LVIS shot numbers (with --data)")
+    parser.add_argument("--cohorts", type=int, default=2, help="height cohorts (with --data)")
+    parser.add_argument(
+        "--same-start",
+        action="store_true",
+        help="real shots: prepare each shot once (in the first coordinates) and sample that "
+        "posterior from the same physical start in each",
+    )
     add_sampler_options(parser)
     args = parser.parse_args()
+    if args.data:
+        args.coordinates = args.coordinates or list(REAL_COORDINATES)
+        main_real(args)
+        return
+    args.coordinates = args.coordinates or [c for c in COORDINATES if c not in REAL_COORDINATES]
     rng = np.random.default_rng(args.seed)
     base = replace(InversionSettings(discrepancy_model=args.discrepancy_model), **TEN_FREE)
     # a fixed length: τ is compared at equal cost, not at convergence

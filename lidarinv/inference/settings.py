@@ -154,9 +154,9 @@ class InversionSettings:
         Crown shapes mixed by ``cone_fraction``.
     ridges : tuple of str
         Ridge-straightening sampling coordinates (:mod:`.model.coordinates`; the posterior
-        is the same, the chains mix faster): all of
-        :data:`.model.coordinates.RIDGE_COORDINATES` by default, ``()`` samples each
-        parameter on its own.
+        is the same, the chains mix faster), from
+        :data:`.model.coordinates.RIDGE_COORDINATES`: :data:`.model.coordinates.DEFAULT_RIDGES`
+        by default, ``()`` samples each parameter on its own.
     unbounded : str
         Map of the bounded priors to the real line the sampler moves on
         (:data:`.model.prior_table.UNBOUNDED_MAPS`): ``"logit"`` (logistic CDF, the default) or

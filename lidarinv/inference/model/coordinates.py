@@ -44,6 +44,19 @@ stand's top lies above it by a gap whose law, near the top, is close to exponent
 its mode at zero. In (top, H) the posterior is a wedge, top ≥ H, densest along its edge.
 Sampling g = ln(top − H) instead of top opens the wedge into a smooth, one-humped density
 along g at fixed H; top = H + e^g has |∂top/∂g| = e^g.
+
+**The lower storey's top ratio ρ** against the upper storey's top H₁ (a two-storey stand,
+:mod:`.two_cohort`). The waveform places the lower storey's return, so it fixes that
+storey's own top H₂ = ρ·H₁ far better than either factor: in (H₁, ρ) the posterior bends
+along ρ = H₂/H₁. With ρ's prior on [ρ₀, ρ₁], H₂ lies in [ρ₀·H₁, ρ₁·H₁]; with
+t = (ρ − ρ₀)/(ρ₁ − ρ₀) and W = (ρ₁ − ρ₀)·H₁ the coordinate
+
+    c = ln(H₂ − ρ₀·H₁) − ln(1 − t^p)/p = ln(t·W) − ln(1 − t^p)/p
+
+is ln(H₂ − ρ₀·H₁) until t^p is no longer small, and spans ℝ with a smooth wall at
+ρ₁ (p = 1 is the crown base's logistic form). At fixed c, ∂H₂/∂H₁ = ρ₀ + (ρ₁ − ρ₀)·t^{p+1},
+against ρ at fixed ρ: the lower storey's top stays in place as the upper storey's moves.
+Its inverse, with y = e^c/W: t = y·(1 + y^p)^{−1/p}, and |∂ρ/∂c| = (ρ₁ − ρ₀)·t·(1 − t^p).
 """
 
 import math
@@ -65,11 +78,22 @@ from .cover_pai import (  # noqa: F401  (re-exported: the cover–PAI maps are c
 from .prior_table import LOGIT, unit_and_log_slope
 
 #: Ridge-straightening coordinates by name (see :class:`.space.ParameterSpace`).
-RIDGE_COORDINATES = ("cover-pai", "crown-base", "ground-centroid", "tallest-stem")
+RIDGE_COORDINATES = (
+    "cover-pai",
+    "crown-base",
+    "ground-centroid",
+    "tallest-stem",
+    "lower-storey-top",
+)
 
-#: Those used by default: all of them (``studies/sampling_coordinates.py`` measures τ per
-#: choice). The tallest stem's gap applies only where that latent is sampled.
-DEFAULT_RIDGES = RIDGE_COORDINATES
+#: Those used by default (``studies/sampling_coordinates.py`` measures τ per choice). The
+#: tallest stem's gap applies only where that latent is sampled.
+DEFAULT_RIDGES = ("cover-pai", "crown-base", "ground-centroid", "tallest-stem")
+
+#: p of the lower storey's coordinate (:func:`lower_top_from_ratio`): its top stays within
+#: (ρ₁ − ρ₀)·t^{p+1} of in place as the upper storey's top moves; a larger p keeps it so
+#: closer to the prior's upper end, with a steeper wall there.
+LOWER_TOP_WALL_POWER = 4.0
 
 
 def crown_base_from_ratio(ratio, mean_height, bounds=(0.0, 1.0)):
@@ -238,12 +262,72 @@ def stem_gap_from_top(top, tallest):
         return np.where(gap > 0, np.log(gap), np.nan)
 
 
+def lower_top_from_ratio(ratio, top, bounds, power=LOWER_TOP_WALL_POWER):
+    """The lower storey's top coordinate.
+
+    Parameters
+    ----------
+    ratio : array
+        The lower storey's top over the upper storey's, ρ.
+    top : array (m)
+        The upper storey's top height H₁.
+    bounds : (float, float)
+        ρ₀, ρ₁: the support of ρ's prior, within [0, 1].
+    power : float
+        p > 0, the sharpness of the wall at ρ₁.
+
+    Returns
+    -------
+    array
+        c = ln(t·(ρ₁ − ρ₀)·H₁) − ln(1 − t^p)/p, t = (ρ − ρ₀)/(ρ₁ − ρ₀): ln(H₂ − ρ₀·H₁)
+        away from ρ₁ (H₂ = ρ·H₁ in m); NaN where H₁ ≤ 0 or ρ ∉ (ρ₀, ρ₁).
+    """
+    ratio, top = np.asarray(ratio, float), np.asarray(top, float)
+    lower, upper = bounds
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (ratio - lower) / (upper - lower)
+        c = np.log(t * (upper - lower) * top) - np.log1p(-(t**power)) / power
+    bad = ~((ratio > lower) & (ratio < upper) & (top > 0))
+    return np.where(bad, np.nan, c)
+
+
+def ratio_from_lower_top(c, top, bounds, power=LOWER_TOP_WALL_POWER):
+    """The lower storey's top ratio from its coordinate: the inverse of
+    :func:`lower_top_from_ratio`.
+
+    Parameters
+    ----------
+    c : array
+    top : array (m)
+        H₁.
+    bounds : (float, float)
+        ρ₀, ρ₁.
+    power : float
+        p.
+
+    Returns
+    -------
+    ratio, log_jac : arrays
+        ρ = ρ₀ + (ρ₁ − ρ₀)·t, t = y·(1 + y^p)^{−1/p} with y = e^c/((ρ₁ − ρ₀)·H₁), and
+        log|∂ρ/∂c| = ln((ρ₁ − ρ₀)·t·(1 − t^p)); NaN where H₁ ≤ 0.
+    """
+    top = np.asarray(top, float)
+    lower, upper = bounds
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        top = np.where(top > 0, top, np.nan)
+        z = c - np.log((upper - lower) * top)  # ln y
+        soft = np.logaddexp(0.0, power * z) / power  # ln(1 + y^p)/p = −ln(1 − t^p)/p
+        log_t = z - soft
+        ratio = np.minimum(lower + (upper - lower) * np.exp(log_t), upper)
+        return ratio, np.log(upper - lower) + log_t - power * soft
+
+
 #: Column code of a parameter held fixed in a ridge map's inputs (its value is passed).
 FIXED = -1
 
 
 def ridges_from_unbounded(
-    u, x, log_jac, joint, base, centroid, inputs, top_sds, slope, *, backend="auto"
+    u, x, log_jac, joint, base, centroid, inputs, top_sds, slope, *, storey=None, backend="auto"
 ):
     """Overwrite the ridge coordinates' columns of x and log_jac with physical values.
 
@@ -268,25 +352,30 @@ def ridges_from_unbounded(
         Mean tree height = top − ``top_sds``·sd.
     slope : float
         a = k·G·Ω of the instrument (:func:`to_cover_pai`).
+    storey : tuple or None
+        (column, ρ₀, ρ₁, p) of the lower storey's top coordinate: the top ratio's column,
+        its prior's support and the wall's power (:func:`ratio_from_lower_top`).
     backend : str
         ``"auto"``, ``"numba"`` or ``"numpy"`` (:func:`forward.backends.resolve`).
 
     Notes
     -----
     Cover and PAI from (s, v) by :func:`to_cover_pai_bounded`; ℓ = 1 − e^b/H̄ by
-    :func:`ratio_from_crown_base`; z_g = c − f(L_u, h_u, r) by :func:`understory_centroid`.
+    :func:`ratio_from_crown_base`; z_g = c − f(L_u, h_u, r) by :func:`understory_centroid`;
+    the lower storey's top ratio by :func:`ratio_from_lower_top`.
     """
+    columns, fixed = inputs
     if resolve(backend) == "numba":
         if joint is not None:
             c, a, cover_bounds, pai_bounds = joint
             cover_pai_compiled(u, x, log_jac, c, a, cover_bounds, pai_bounds, slope)
         if base is not None or centroid is not None:
-            columns, fixed = inputs
             _crown_and_ground_compiled(
                 u, x, log_jac, base, centroid, columns, fixed, top_sds, slope
             )
+        if storey is not None:
+            _lower_top(u, x, log_jac, np.array(storey, float), columns[0], fixed[0])
         return
-    columns, fixed = inputs
     top, sd, lai, height, ratio = (
         x[:, col] if col != FIXED else value for col, value in zip(columns, fixed)
     )
@@ -299,6 +388,9 @@ def ridges_from_unbounded(
     if base is not None:
         r, lower, upper = base
         x[:, r], log_jac[:, r] = ratio_from_crown_base(u[:, r], top - top_sds * sd, (lower, upper))
+    if storey is not None:
+        k, lower, upper, power = storey
+        x[:, k], log_jac[:, k] = ratio_from_lower_top(u[:, k], top, (lower, upper), power)
     if centroid is not None:
         g, lower, stretch = centroid
         level = lower + (x[:, g] - lower) * stretch
@@ -306,7 +398,7 @@ def ridges_from_unbounded(
         log_jac[:, g] += np.log(stretch)
 
 
-# The crown-base and ground-centroid maps compiled (the twins of the numpy maps above).
+# The crown-base, ground-centroid and lower-storey maps compiled (twins of the numpy maps).
 # error_model="numpy": x/0 gives ±inf or NaN, as in the numpy maps, instead of raising.
 
 
@@ -353,3 +445,21 @@ def _crown_and_ground_compiled(u, x, log_jac, base, centroid, columns, fixed, to
     centroid = np.array([-1.0, 0.0, 1.0] if centroid is None else centroid, float)
     base = np.array([-1.0, 0.0, 1.0] if base is None else base, float)
     _crown_and_ground(u, x, log_jac, base, centroid, columns, fixed, top_sds, slope)
+
+
+@jit(error_model="numpy")
+def _lower_top(u, x, log_jac, storey, top_column, top_fixed):
+    """The lower storey's top ratio from its coordinate (:func:`ratio_from_lower_top`) in
+    place; ``storey``: column, ρ₀, ρ₁, p; the upper top a column of x or FIXED and a value."""
+    k, lower, upper, power = int(storey[0]), storey[1], storey[2], storey[3]
+    width = upper - lower
+    for r in range(u.shape[0]):
+        top = _value(x, r, top_column, top_fixed)
+        top = top if top > 0.0 else math.nan
+        z = u[r, k] - math.log(width * top)
+        a = power * z  # ln(1 + e^a) without overflow, NaN kept
+        soft = (a + math.log1p(math.exp(-a)) if a > 0.0 else math.log1p(math.exp(a))) / power
+        log_t = z - soft
+        ratio = lower + width * math.exp(log_t)
+        x[r, k] = upper if ratio > upper else ratio
+        log_jac[r, k] = math.log(width) + log_t - power * soft

@@ -80,6 +80,9 @@ class ParameterSpace:
           with a non-zero LAI (free or fixed).
         - ``tallest-stem``: the log gap between the top height and the tallest stem
           instead of ``top_height``, when both are free.
+        - ``lower-storey-top``: the lower storey's log top height above its prior's floor
+          instead of ``cohort2_top_ratio``, when that is free and ``top_height`` is in the
+          space (free or fixed).
     unbounded : str
         Map of each bounded prior to the real line, from :data:`.prior_table.UNBOUNDED_MAPS`.
     interception_slope : float
@@ -140,6 +143,7 @@ class ParameterSpace:
             and set(needed) <= set(names)
             else None
         )
+        self._storey = self._storey_map() if "lower-storey-top" in self.ridges else None
         self._sd_cap = self._sd_cap_map()
         self._centroid = self._centroid_map() if "ground-centroid" in self.ridges else None
         stem = ("top_height", TALLEST_STEM)
@@ -176,6 +180,8 @@ class ParameterSpace:
             joint += ", ground-centroid-v1"
         if self._stem is not None:
             joint += ", tallest-stem-gap-v1"
+        if self._storey is not None:
+            joint += f", lower-storey-top-v1(p={self._storey[3]:g})"
         priors = ";".join(f"{p.name}:{p.prior.describe()}" for p in self.free)
         marginalised = "".join(f"; marginalised {name}" for name in self.marginalised)
         return f"lidarinv {self.unbounded} transforms, {joint}; {priors}{marginalised}"
@@ -264,7 +270,8 @@ class ParameterSpace:
             log_jac[:, sd] += extra
         coordinates.ridges_from_unbounded(
             u, x, log_jac, self._joint, self._base, self._centroid, self._ridge_inputs,
-            TOP_SDS, self.interception_slope, backend=self.backend if backend is None else backend,
+            TOP_SDS, self.interception_slope, storey=self._storey,
+            backend=self.backend if backend is None else backend,
         )  # fmt: skip
         return x, log_jac.sum(axis=1)
 
@@ -300,6 +307,10 @@ class ParameterSpace:
         if self._base is not None:
             r, *bounds = self._base
             u[:, r] = coordinates.crown_base_from_ratio(x[:, r], self._mean(x), bounds)
+        if self._storey is not None:
+            k, *bounds, power = self._storey
+            top = self._column(x, "top_height")
+            u[:, k] = coordinates.lower_top_from_ratio(x[:, k], top, bounds, power)
         if self._stem is not None:
             top, stem = self._stem
             u[:, top] = coordinates.stem_gap_from_top(x[:, top], x[:, stem])
@@ -334,6 +345,15 @@ class ParameterSpace:
             return None
         form = self.by_name["height_sd"].prior.form()
         return self.names.index("height_sd"), form.w_lower, form.w_upper, form.log_scale
+
+    def _storey_map(self):
+        """(column, ρ₀, ρ₁, p) of the lower storey's top coordinate
+        (:func:`.coordinates.ratio_from_lower_top`), or None where it does not apply."""
+        if "cohort2_top_ratio" not in self.names or "top_height" not in self.by_name:
+            return None
+        lower, upper = _support(self.by_name["cohort2_top_ratio"], upper=1.0)
+        column = self.names.index("cohort2_top_ratio")
+        return column, max(lower, 0.0), upper, coordinates.LOWER_TOP_WALL_POWER
 
     def _centroid_map(self):
         """(column, lower, stretch) of the ground-centroid coordinate, or None where it does
