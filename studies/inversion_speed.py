@@ -52,6 +52,12 @@ from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from speed_real_shots import (  # noqa: E402
+    compare_with_tau_rule,
+    plot_time_vs_error,
+    run_real,
+    variant_table,
+)
 
 from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
 from lidarinv.inference import (  # noqa: E402
@@ -62,7 +68,6 @@ from lidarinv.inference import (  # noqa: E402
 )
 from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS  # noqa: E402
 from lidarinv.inference.model.prior_table import DEFAULT_UNBOUNDED, UNBOUNDED_MAPS  # noqa: E402
-from lidarinv.inference.results.reported import REPORTED  # noqa: E402
 from lidarinv.inference.sampling.stopping import STOP_RULES  # noqa: E402
 
 TARGET_SECONDS = 10.0
@@ -134,229 +139,6 @@ def _invert_timed(obs, settings, seed, problem=None) -> dict:
         "window_bins": int(result.axis.size),
         "microseconds_per_evaluation": per_row,
     }
-
-
-#: Quantities whose quantiles are compared with the reference runs: those the stopping
-#: rule monitors, and RH98 in the product's convention.
-AGREEMENT_QUANTITIES = (*REPORTED, "rh98_product")
-#: Quantiles (%) compared.
-AGREEMENT_QUANTILES = (5, 50, 95)
-
-
-def reported_quantiles(result) -> dict:
-    """{name: {"quantiles": 5/50/95 %, "sd": posterior sd}} of the compared quantities a
-    result has."""
-    out = {}
-    for name in AGREEMENT_QUANTITIES:
-        if name not in result.quantity_names:
-            continue
-        values = result.column(name)
-        values = values[np.isfinite(values)]
-        if values.size > 1:
-            q = np.percentile(values, AGREEMENT_QUANTILES)
-            out[name] = {"quantiles": [float(v) for v in q], "sd": float(np.std(values))}
-    return out
-
-
-def agreement(run: dict, reference: dict) -> dict:
-    """|run − reference| of each quantity's 5/50/95 % quantiles, in the reference's
-    posterior sd ({name: [three values]}); quantities the reference holds fixed (sd 0)
-    are left out."""
-    out = {}
-    for name, ref in reference.items():
-        if name in run and ref["sd"] > 0:
-            pairs = zip(run[name]["quantiles"], ref["quantiles"])
-            out[name] = [abs(a - b) / ref["sd"] for a, b in pairs]
-    return out
-
-
-def real_observations(data, instrument, ids):
-    """The shots ``ids`` of an instrument's L1B file among the real files (in the
-    order given), refusing ids the file does not hold."""
-    from real_products import data_files as product_files
-
-    from lidarinv.io import iter_observations
-    from lidarinv.observe import Observation
-
-    path = product_files(data)[f"{instrument}-l1b"]
-    wanted = [int(i) for i in ids]
-    found = {
-        o.shot_id: o
-        for o in iter_observations(path)
-        if isinstance(o, Observation) and o.shot_id in wanted
-    }
-    missing = [i for i in wanted if i not in found]
-    if missing:
-        raise SystemExit(f"{path}: no shot(s) {missing}")
-    return [found[i] for i in wanted]
-
-
-def stopping_variants(rules, min_taus) -> dict:
-    """{name: SamplerSettings changes} for each stopping rule asked for (one
-    ``ess-rhat`` variant per ``min_taus`` value)."""
-    out = {}
-    for rule in rules:
-        if rule == "tau":
-            out["tau"] = {"stop_rule": "tau"}
-        else:
-            for m in min_taus:
-                out[f"{rule}-{m:g}tau"] = {"stop_rule": rule, "min_taus": m}
-    return out
-
-
-def _timed_result(obs, settings, seed):
-    """One inversion: its result, wall and CPU seconds."""
-    start, cpu = time.perf_counter(), time.process_time()
-    result = invert_shot(obs, settings, rng=np.random.default_rng(seed))
-    return result, time.perf_counter() - start, time.process_time() - cpu
-
-
-def _run_record(result, seconds, cpu_seconds) -> dict:
-    d = result.diagnostics
-    return {
-        "seconds": seconds,
-        "cpu_seconds": cpu_seconds,
-        "steps": int(d["n_steps"]),
-        "burn": int(d["burn"]),
-        "converged": result.converged,
-        "cohorts": result.settings.get("cohorts"),
-        "quantities": {  # ESS, R̂ and τ of the monitored quantities
-            name: {k: v for k, v in q.items()} for name, q in d.get("quantities", {}).items()
-        },
-        "flags": [f for f in result.flags if f.startswith("not converged")],
-        "reported": reported_quantiles(result),
-    }
-
-
-def reference_run(obs, settings, seed, args, store: dict) -> dict:
-    """The long run of a shot, from ``store`` if it holds one, else run and kept there."""
-    key = f"{obs.instrument}:{obs.shot_id}"
-    if key in store:
-        return store[key]
-    sampler = replace(
-        settings.sampler,
-        stop_rule="tau",
-        tau_multiple=args.reference_taus,
-        max_steps=args.reference_steps,
-    )
-    result, seconds, cpu = _timed_result(obs, replace(settings, sampler=sampler), seed)
-    store[key] = _run_record(result, seconds, cpu)
-    store[key]["reference_steps"] = args.reference_steps
-    store[key]["reference_taus"] = args.reference_taus
-    return store[key]
-
-
-def run_real(args, settings) -> dict:
-    """Each real shot under each stopping variant, against its long reference run."""
-    shots = [
-        *real_observations(args.data, "gedi", args.gedi_shots or []),
-        *real_observations(args.data, "lvis", args.lvis_shots or []),
-    ]
-    variants = stopping_variants(args.stop_rule, args.min_taus)
-    store_path = Path(args.reference_file)
-    store = json.loads(store_path.read_text()) if store_path.exists() else {}
-    rows = []
-    folder = _output_folder(args.tag)
-    seeds_of_shots = np.random.SeedSequence(args.seed).spawn(len(shots))
-    for obs, seeds in list(zip(shots, seeds_of_shots))[args.skip_shots :]:
-        run_seed, reference_seed = seeds.spawn(2)
-        reference = None
-        if args.reference_steps:
-            reference = reference_run(obs, settings, reference_seed, args, store)
-            store_path.parent.mkdir(parents=True, exist_ok=True)
-            harness.write_json(store_path, store)
-        for name, changes in variants.items():
-            sampler = replace(settings.sampler, **changes)
-            result, seconds, cpu = _timed_result(obs, replace(settings, sampler=sampler), run_seed)
-            row = {"shot": str(obs.shot_id), "instrument": obs.instrument, "variant": name}
-            row.update(_run_record(result, seconds, cpu))
-            if reference is not None:
-                row["reference_cohorts"] = reference["cohorts"]
-                row["error_sd"] = agreement(row["reported"], reference["reported"])
-                errors = [e for values in row["error_sd"].values() for e in values]
-                row["max_error_sd"] = float(np.max(errors)) if errors else np.nan
-            rows.append(row)
-            _compare_with_tau_rule(rows, obs.shot_id)
-            brief = {k: row.get(k) for k in ("shot", "variant", "cpu_seconds", "steps",
-                                             "converged", "max_error_sd", "max_error_vs_tau_sd",
-                                             "flags")}  # fmt: skip
-            print(json.dumps(brief), flush=True)
-            harness.write_json(folder / "summary.json", {"shots": rows})
-    summary = {"variants": _variant_table(rows, variants), "shots": rows}
-    summary["references"] = {k: v for k, v in store.items() if k.split(":")[1] in
-                             {str(o.shot_id) for o in shots}}  # fmt: skip
-    harness.write_json(folder / "summary.json", summary)
-    plot_time_vs_error(rows, variants, folder / "time_vs_error.png")
-    return summary
-
-
-def _compare_with_tau_rule(rows, shot_id):
-    """Each variant's quantile errors against the ``tau`` rule's run of the same shot and
-    seed (``error_vs_tau_sd``): what the stopping rule alone changes, the start the same."""
-    same = [r for r in rows if r["shot"] == str(shot_id)]
-    baseline = [r for r in same if r["variant"] == "tau"]
-    if not baseline:
-        return
-    for row in same:
-        if row["variant"] != "tau":
-            row["error_vs_tau_sd"] = agreement(row["reported"], baseline[0]["reported"])
-            errors = [e for values in row["error_vs_tau_sd"].values() for e in values]
-            row["max_error_vs_tau_sd"] = float(np.max(errors)) if errors else np.nan
-
-
-def _variant_table(rows, variants) -> dict:
-    """Per variant and instrument: median CPU and wall seconds, the share converged, and
-    the median and largest quantile error (reference sd)."""
-    out = {}
-    for name in variants:
-        for instrument in sorted({r["instrument"] for r in rows}):
-            picked = [r for r in rows if r["variant"] == name and r["instrument"] == instrument]
-            if not picked:
-                continue
-            errors = [r.get("max_error_sd", np.nan) for r in picked]
-            against_tau = [r.get("max_error_vs_tau_sd", np.nan) for r in picked]
-            out[f"{name} {instrument}"] = {
-                "shots": len(picked),
-                "median_cpu_seconds": float(np.median([r["cpu_seconds"] for r in picked])),
-                "median_seconds": float(np.median([r["seconds"] for r in picked])),
-                "converged_fraction": float(np.mean([r["converged"] for r in picked])),
-                "median_max_error_sd": float(np.median(errors)),
-                "max_error_sd": float(np.max(errors)),
-                "median_max_error_vs_tau_sd": float(np.median(against_tau)),
-                "max_error_vs_tau_sd": float(np.max(against_tau)),
-            }
-    return out
-
-
-def plot_time_vs_error(rows, variants, path):
-    """CPU seconds per shot against the largest quantile error (reference sd; against the
-    ``tau`` rule's run of the shot where there is no reference run), one colour a stopping
-    variant, one marker an instrument: the time-versus-error curve."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 4), constrained_layout=True)
-    markers = {"gedi": "o", "lvis": "s"}
-    for k, name in enumerate(variants):
-        for instrument, marker in markers.items():
-            picked = [r for r in rows if r["variant"] == name and r["instrument"] == instrument]
-            for key, against, fill in (("max_error_sd", "long run", f"C{k}"),
-                                       ("max_error_vs_tau_sd", "tau rule", "none")):  # fmt: skip
-                error = np.array([r.get(key, np.nan) for r in picked], float)
-                kept = np.isfinite(error)
-                if np.any(kept):
-                    ax.scatter(np.array([r["cpu_seconds"] for r in picked])[kept], error[kept],
-                               facecolors=fill, edgecolors=f"C{k}", marker=marker,
-                               label=f"{name}, {instrument}, against the {against}")  # fmt: skip
-    ax.axhline(0.2, color="k", lw=0.8, ls="--")
-    ax.set_xscale("log")
-    ax.set_xlabel("CPU time per shot (s, one core)")
-    ax.set_ylabel("largest |quantile − reference's| (posterior sd)")
-    ax.legend(fontsize=7)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def _output_folder(tag) -> Path:
@@ -484,10 +266,10 @@ def main():
     if args.combine:
         rows = [row for path in args.combine for row in json.loads(Path(path).read_text())["shots"]]
         for shot in {row["shot"] for row in rows}:
-            _compare_with_tau_rule(rows, shot)
+            compare_with_tau_rule(rows, shot)
         variants = list(dict.fromkeys(row["variant"] for row in rows))
         folder = _output_folder(args.tag)
-        summary = {"variants": _variant_table(rows, variants), "shots": rows}
+        summary = {"variants": variant_table(rows, variants), "shots": rows}
         harness.write_json(folder / "summary.json", summary)
         plot_time_vs_error(rows, variants, folder / "time_vs_error.png")
         print(json.dumps(summary["variants"], indent=1))

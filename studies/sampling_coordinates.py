@@ -239,7 +239,7 @@ def storey_shape(draws) -> dict:
 
 def main_real(args):
     """:func:`run_real_shot` of each real LVIS shot in each coordinate set."""
-    from inversion_speed import real_observations
+    from speed_real_shots import real_observations
 
     shots = real_observations(args.data, "lvis", args.lvis_shots)
     base = InversionSettings(cohorts=args.cohorts)
