@@ -12,7 +12,13 @@ from ..passes.realisations import footprint_cover
 from ..posterior import BLOB_NAMES, BLOB_UNITS
 from ..problem import InversionProblem
 from ..sampling.sampler import SamplerRun
-from .footprint import FOOTPRINT_BARE, FOOTPRINT_NO_STEM, footprint_bare, footprint_no_stem
+from .footprint import (
+    FOOTPRINT_BARE,
+    FOOTPRINT_NO_STEM,
+    excess_sigmas,
+    footprint_bare,
+    footprint_no_stem,
+)
 from .local_misfit import describe_local_misfit, local_misfit, return_width_bins
 from .product_metrics import product_relative_heights
 from .result import QUANTILES, InversionResult
@@ -66,7 +72,7 @@ FOOTPRINT_RH = {f"{name}_footprint": level for name, level in RH_LEVELS.items()}
 _CHUNK = 1024
 
 
-def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
+def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict, np.ndarray]:
     """The marginalised parameters' draws and the RH of every posterior sample in the
     product's convention and of the footprint's own waveform, from one evaluation of the
     samples (in chunks).
@@ -91,6 +97,9 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
         model's RH of the footprint's noise-free waveform a·W + d, d drawn from
         p(d | θ, y) (:func:`.likelihood.conditional.discrepancy_given_data`), NaN where
         the likelihood does not allow it; NaN where a sample has no finite posterior.
+    canopy_sigmas : array (n,)
+        :func:`.footprint.canopy_return_sigmas` of each sample (its drawn gain), from the
+        same waveforms; NaN where a sample has no finite posterior.
     """
     post = problem.log_posterior
     like = post.likelihood
@@ -98,6 +107,7 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
     levels = list(PRODUCT_RH.values())
     heights = np.full((x.shape[0], len(levels)), np.nan)
     footprint = np.full((x.shape[0], len(FOOTPRINT_RH)), np.nan)
+    canopy_sigmas = np.full(x.shape[0], np.nan)
     conditioned = like.conditioning_obstacle is None
     parts = []
     for first in range(0, x.shape[0], _CHUNK):
@@ -110,6 +120,7 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
         values = problem.space.values(x[rows][good])
         values.update({name: draws[good] for name, draws in parts[-1].items()})
         mean = like.predictive_moments(terms.signal[good], values)[0]
+        canopy_sigmas[first + good] = excess_sigmas(problem, terms.signal[good], values)
         heights[first + good] = product_relative_heights(
             mean, problem.window.axis, values["ground_elevation"], values["baseline"],
             problem.analysis, settings, levels,
@@ -123,7 +134,7 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict]:
     drawn = {name: np.concatenate([part[name] for part in parts]) for name in parts[0]}
     heights = {name: heights[:, i] for i, name in enumerate(PRODUCT_RH)}
     heights.update({name: footprint[:, i] for i, name in enumerate(FOOTPRINT_RH)})
-    return drawn, heights
+    return drawn, heights, canopy_sigmas
 
 
 #: A posterior-predictive p-value below this flags a misfit the model cannot explain.
@@ -224,11 +235,11 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     derived = {name: blobs[:, i] for i, name in enumerate(BLOB_NAMES)}
     derived[FOOTPRINT_TOP] = footprint_top_height(problem, x, derived["density"], rng)
     derived[FOOTPRINT_NO_STEM] = footprint_no_stem(problem, derived["density"])
-    drawn, heights = sample_draws(problem, x, rng)  # e.g. the gain, from p(gain | θ, y)
+    drawn, heights, canopy_sigmas = sample_draws(problem, x, rng)  # e.g. the gain drawn
     derived.update(heights)
     seen = heights["rh98_footprint"]  # the footprint's own waveform, else the model's
     seen = seen if np.isfinite(seen).any() else derived["rh98"]
-    derived[FOOTPRINT_BARE] = footprint_bare(problem, x, seen)
+    derived[FOOTPRINT_BARE] = footprint_bare(problem, x, seen, canopy_sigmas)
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
     terms = post.evaluate(x[pick], keep_signal=True)
     good = np.isfinite(terms.log_posterior)

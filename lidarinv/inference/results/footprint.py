@@ -82,15 +82,8 @@ def canopy_return_sigmas(problem: InversionProblem, x) -> np.ndarray:
     """
     model, window, noise = problem.log_posterior.model, problem.window, problem.analysis.noise
     values = problem.space.values(x)
-    n = x.shape[0]
-    broadening = np.asarray(values.get("pulse_broadening", np.zeros(n)), float) * np.ones(n)
-    bin_m = float(window.axis[1] - window.axis[0])
-    pulse = problem.instrument.pulse
-    reach = bare_ground_rh98(pulse, broadening, bin_m)
-    edges = np.append(window.axis - 0.5 * bin_m, window.axis[-1] + 0.5 * bin_m)
-    lags = _noise_lags(noise.autocorrelation)
-    sigmas = np.full(n, np.nan)
-    for first in range(0, n, _CHUNK):
+    sigmas = np.full(x.shape[0], np.nan)
+    for first in range(0, x.shape[0], _CHUNK):
         rows = slice(first, first + _CHUNK)
         part = {k: v[rows] if np.ndim(v) else v for k, v in values.items()}
         vectors, _ = model.mapping.model_vectors(part)
@@ -102,17 +95,44 @@ def canopy_return_sigmas(problem: InversionProblem, x) -> np.ndarray:
             recorded = window.samples[None, :] - np.asarray(baseline)[..., None]
             power = np.sum(whole * whole, axis=1)
             gain = np.sum(whole * recorded, axis=1) / np.where(power > 0, power, np.inf)
-        peak = _ground_peak(whole, window.axis, part["ground_elevation"], reach[rows])
-        offsets = edges[None, :] - peak[:, None]
-        bare = np.diff(_bare_cdf(pulse, broadening[rows], offsets), axis=1)
-        excess = whole - np.sum(whole, axis=1, keepdims=True) * bare
-        above = window.axis[None, :] > (peak + reach[rows])[:, None]
-        e = np.where(above, np.clip(excess, 0.0, None), 0.0) * np.asarray(gain)[:, None]
-        signal = np.sum(e * e, axis=1)
-        spread = noise.sigma * np.sqrt(np.maximum(_lagged_power(e, lags), 0.0))
-        ratio = np.where(spread > 0, signal / np.where(spread > 0, spread, 1.0), 0.0)
-        sigmas[rows] = np.where(expected.valid, ratio, np.nan)
+        part["gain"] = gain
+        sigmas[rows] = np.where(expected.valid, excess_sigmas(problem, whole, part), np.nan)
     return sigmas
+
+
+def excess_sigmas(problem: InversionProblem, waveforms, values) -> np.ndarray:
+    """:func:`canopy_return_sigmas` of given model waveforms.
+
+    Parameters
+    ----------
+    problem : InversionProblem
+    waveforms : array (n, bins)
+        Model waveforms W, widened by each row's broadening.
+    values : dict of arrays (n,)
+        Each row's parameters: ``ground_elevation``, ``gain`` (DN), and
+        ``pulse_broadening`` (m) where the space has it.
+
+    Returns
+    -------
+    array (n,)
+    """
+    window, noise = problem.window, problem.analysis.noise
+    n = waveforms.shape[0]
+    broadening = np.asarray(values.get("pulse_broadening", np.zeros(n)), float) * np.ones(n)
+    bin_m = float(window.axis[1] - window.axis[0])
+    pulse = problem.instrument.pulse
+    reach = bare_ground_rh98(pulse, broadening, bin_m)
+    edges = np.append(window.axis - 0.5 * bin_m, window.axis[-1] + 0.5 * bin_m)
+    peak = _ground_peak(waveforms, window.axis, values["ground_elevation"], reach)
+    bare = np.diff(_bare_cdf(pulse, broadening, edges[None, :] - peak[:, None]), axis=1)
+    excess = waveforms - np.sum(waveforms, axis=1, keepdims=True) * bare
+    above = window.axis[None, :] > (peak + reach)[:, None]
+    gain = np.asarray(values["gain"], float) * np.ones(n)
+    e = np.where(above, np.clip(excess, 0.0, None), 0.0) * gain[:, None]
+    signal = np.sum(e * e, axis=1)
+    power = _lagged_power(e, _noise_lags(noise.autocorrelation))
+    spread = noise.sigma * np.sqrt(np.maximum(power, 0.0))
+    return np.where(spread > 0, signal / np.where(spread > 0, spread, 1.0), 0.0)
 
 
 def _ground_peak(waveforms, axis, ground, reach) -> np.ndarray:
@@ -160,7 +180,7 @@ def _lagged_power(c, lags) -> np.ndarray:
     return total
 
 
-def footprint_bare(problem: InversionProblem, x, rh98) -> np.ndarray:
+def footprint_bare(problem: InversionProblem, x, rh98, sigmas=None) -> np.ndarray:
     """Whether each sample's footprint waveform shows no canopy return (1) or does (0).
 
     Parameters
@@ -170,6 +190,9 @@ def footprint_bare(problem: InversionProblem, x, rh98) -> np.ndarray:
         Posterior samples (physical units).
     rh98 : array (n,) (m)
         The RH98 of each sample's footprint waveform: NaN marks a sample without one.
+    sigmas : array (n,), optional
+        :func:`canopy_return_sigmas` where already computed (e.g. by
+        :func:`.collect.sample_draws` from the waveforms it evaluates anyway).
 
     Returns
     -------
@@ -183,7 +206,7 @@ def footprint_bare(problem: InversionProblem, x, rh98) -> np.ndarray:
         judged by a coin's toss: its samples spread their RH98 about the bare ground's by
         what the noise hides in the return's top 2 %.
     """
-    sigmas = canopy_return_sigmas(problem, x)
+    sigmas = canopy_return_sigmas(problem, x) if sigmas is None else np.asarray(sigmas, float)
     known = np.isfinite(np.asarray(rh98, float)) & np.isfinite(sigmas)
     return np.where(known, (sigmas < CANOPY_DETECTION_SIGMAS).astype(float), np.nan)
 
