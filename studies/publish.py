@@ -39,6 +39,7 @@ SOURCES = {
     "real-products": "real_products{tag}/summary.json",
     "real-inversion": "real_inversion{tag}/summary.json",
     "real-inversion-shared": "real_inversion{tag}/summary.json",
+    "real-inversion-tall": "real_inversion{tag}/summary.json",
 }
 
 

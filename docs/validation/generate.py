@@ -132,6 +132,14 @@ PAGES = {
                 "--tag _shared_lvis; python studies/real_inversion.py --combine _shared_gedi "
                 "_shared_lvis --tag _shared",
             ),
+            (
+                "real-inversion-tall",
+                "Posteriors against the products: the tall LVIS flight line (LFID "
+                "1657455164, L2 RH98 27–50 m, weak grounds under closed canopies)",
+                render_real_inversion,
+                "python studies/real_inversion.py --data ../shared/data/real --instrument "
+                "lvis --skip-shots 155 --workers 2 --tag _tall",
+            ),
         ],
     ),
 }

@@ -295,6 +295,12 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
                 f"{_cell(part['median_residual_scale'])}× the modelled scatter at the median "
                 f"shot, {_cell(part.get('p90_residual_scale'))}× at the 90th percentile."
             )
+        if part.get("misfit_local") is not None:
+            text += (
+                f" Flagged as a misfit on any count: {part.get('misfit_any_flag')} shots, "
+                f"{part['misfit_local']} of them by the local check (a stretch of the waveform "
+                f"whose residual sum leaves the replicated spread)."
+            )
         floor = part.get("median_instrument_floor")
         if part.get("model_error_raised") or floor is not None:  # runs that had the raise
             text += (
