@@ -150,6 +150,15 @@ def _coverage_by_kind(by_kind) -> str:
     )
 
 
+def difference_table(ours, differences, extra) -> str:
+    """A table of differences from a product: one row a quantity ({name: its summary}),
+    the columns shared by the product studies and then ``extra`` ({header: key})."""
+    header = ["quantity", "shots", f"median ({ours} − product)", "median |d|", "90th pct |d|"]
+    keys = ["n", "median", "median_abs", "p90_abs", *extra.values()]
+    rows = [[literal(q), *(d.get(k) for k in keys)] for q, d in differences.items()]
+    return table([*header, *extra], rows)
+
+
 def render_real_products(record, figures: Path, key: str) -> str:
     """Direct metrics against the NASA products (``studies/real_products.py``)."""
     s = record["summary"]
@@ -165,20 +174,8 @@ def render_real_products(record, figures: Path, key: str) -> str:
             f"**{title}.** {part['shots']} shots; statuses: {statuses}; flags: {flags}; "
             f"median {_cell(part.get('seconds_per_shot'))} s a shot.\n\n"
         )
-        header = ["quantity", "shots", "median (ours − product)", "median |d|", "90th pct |d|",
-                  "within 1 m"]  # fmt: skip
-        rows = [
-            [
-                literal(q),
-                d.get("n"),
-                d.get("median"),
-                d.get("median_abs"),
-                d.get("p90_abs"),
-                d.get("within_1m"),
-            ]
-            for q, d in part.get("differences", {}).items()
-        ]
-        text += table(header, rows) + "\n"
+        differences = part.get("differences", {})
+        text += difference_table("ours", differences, {"within 1 m": "within_1m"}) + "\n"
     ratio = s.get("gedi", {}).get("cover_ratio")
     if ratio:
         text += (
@@ -314,22 +311,9 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
                 f"{part['two_cohorts_bic_over_10']} of them with a BIC lower by more than 10."
             )
         text += "\n\n"
-        header = ["quantity", "shots", "median (posterior − product)", "median |d|",
-                  "90th pct |d|", "inside", "widened"]  # fmt: skip
-        rows = [
-            [
-                literal(q),
-                d.get("n"),
-                d.get("median"),
-                d.get("median_abs"),
-                d.get("p90_abs"),
-                d.get("inside_90"),
-                d.get("inside_90_widened"),
-            ]
-            for q, d in part.items()
-            if isinstance(d, dict) and "median_abs" in d
-        ]
-        text += table(header, rows) + "\n"
+        differences = {q: d for q, d in part.items() if isinstance(d, dict) and "median_abs" in d}
+        coverage = {"inside": "inside_90", "widened": "inside_90_widened"}
+        text += difference_table("posterior", differences, coverage) + "\n"
     return text + provenance(record)
 
 

@@ -3,6 +3,7 @@ priors unchanged."""
 
 import numpy as np
 import pytest
+from jacobian_check import assert_exact_jacobian
 
 from lidarinv.inference.model import coordinates
 from lidarinv.inference.model.parameters import default_space
@@ -147,18 +148,6 @@ def test_understory_centroid_is_the_first_moment_of_the_return(lai, height, rati
 CENTROID = ("cover-pai", "crown-base", "ground-centroid")
 
 
-def _assert_exact_jacobian(space, u, log_jac, step=1e-6):
-    """log|det ∂x/∂u| of rows u against central finite differences."""
-    for row, expected in zip(u, log_jac):
-        jacobian = np.empty((space.ndim, space.ndim))
-        for j in range(space.ndim):
-            du = np.zeros(space.ndim)
-            du[j] = step
-            up, down = space.from_unbounded(row + du)[0], space.from_unbounded(row - du)[0]
-            jacobian[:, j] = (up[0] - down[0]) / (2 * step)
-        assert np.linalg.slogdet(jacobian)[1] == pytest.approx(expected, abs=1e-5)
-
-
 def test_space_samples_the_ground_centroid_with_exact_jacobian(nuisance_priors):
     """Round trip, and log|det ∂x/∂u| of all three coordinates against finite differences."""
     space = default_space(nuisance_priors, ridges=CENTROID)
@@ -180,7 +169,7 @@ def test_space_samples_the_ground_centroid_with_exact_jacobian(nuisance_priors):
     np.testing.assert_allclose(u[:, g], prior.to_unbounded(widened), rtol=1e-10)
     back, log_jac = space.from_unbounded(u)
     np.testing.assert_allclose(back, x, rtol=1e-10, atol=1e-12)
-    _assert_exact_jacobian(space, u[:5], log_jac[:5])
+    assert_exact_jacobian(space, u[:5], log_jac[:5])
 
 
 def test_ground_centroid_reaches_the_whole_ground_prior(nuisance_priors):
@@ -258,7 +247,7 @@ def test_space_samples_the_gap_above_the_tallest_stem_with_exact_jacobian(nuisan
     np.testing.assert_allclose(u[:, top], np.log(x[:, top] - x[:, stem]), rtol=1e-12)
     back, log_jac = space.from_unbounded(u)
     np.testing.assert_allclose(back, x, rtol=1e-10, atol=1e-12)
-    _assert_exact_jacobian(space, u[:5], log_jac[:5])
+    assert_exact_jacobian(space, u[:5], log_jac[:5])
     plain = default_space(nuisance_priors, tallest_stem=True, ridges=CENTROID)
     assert "tallest-stem" not in plain.signature()
     np.testing.assert_allclose(plain.from_unbounded(plain.to_unbounded(x))[0], x, rtol=1e-10)
