@@ -137,7 +137,7 @@ PAGES = {
                 "Posteriors against the products: the tall LVIS flight line (LFID "
                 "1657455164, L2 RH98 27–50 m, weak grounds under closed canopies)",
                 render_real_inversion,
-                "python studies/real_inversion.py --data ../shared/data/real --instrument "
+                "python studies/real_inversion.py --data DATA --instrument "
                 "lvis --skip-shots 155 --workers 2 --tag _tall",
             ),
         ],
