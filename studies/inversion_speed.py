@@ -23,18 +23,17 @@ Real shots, and a time-versus-error curve (issue 46): with ``--data`` (a folder 
 real files, or ``examples`` for those in ``lidarinv/data``) the shots named by
 ``--gedi-shots`` and ``--lvis-shots`` are inverted, each under every stopping rule asked
 for (``--stop-rule ess-rhat tau``; ``--min-taus 5 10`` gives one ``ess-rhat`` variant
-each), and once more as a long reference run (``--reference-steps``: the ``tau`` rule at
-``--reference-taus`` τ, within that many steps, with a seed of its own). Each run's
+each). Where ``--reference-file`` (written by ``studies/reference_posteriors.py``; by
+default the test data) holds a shot's long reference run, the shot is inverted with the
+reference's seed, so that both sample the same prepared posterior, and each run's
 reported quantities' 5/50/95 % quantiles are compared with the reference's, in the
-reference's posterior sd, and with the ``tau`` rule's run of the same shot and seed
-where it ran; references are kept in ``--reference-file`` (JSON) and reused, so that
-rules measured in separate calls meet the same reference. ``--combine`` joins such runs'
-``summary.json`` files into one table and curve.
+reference's posterior sd; they are also compared with the ``tau`` rule's run of the same
+shot and seed where it ran. ``--combine`` joins such runs' ``summary.json`` files into
+one table and curve.
 
     python studies/inversion_speed.py --data ../shared/data/real --gedi-shots ID ...
                                       --lvis-shots ID ... [--stop-rule ess-rhat tau]
-                                      [--min-taus 10] [--reference-steps 50000]
-                                      [--reference-taus 200] [--reference-file PATH]
+                                      [--min-taus 10] [--reference-file PATH]
     python studies/inversion_speed.py --combine SUMMARY.json ... [--tag _NAME]
 
 Writes studies/output/inversion_speed[_TAG]/summary.json and speed.png (synthetic), or
@@ -52,6 +51,7 @@ from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from reference_posteriors import STORE as REFERENCE_STORE  # noqa: E402
 from speed_real_shots import (  # noqa: E402
     compare_with_tau_rule,
     plot_time_vs_error,
@@ -253,15 +253,10 @@ def main():
         "--min-taus", nargs="+", type=float, default=[SamplerSettings().min_taus],
         help="the ess-rhat rule's least chain in τ; one variant each",
     )  # fmt: skip
-    parser.add_argument("--reference-steps", type=int, default=50_000,
-                        help="step cap of the long reference runs (0: none)")  # fmt: skip
-    parser.add_argument("--reference-taus", type=float, default=200.0,
-                        help="the reference runs' length in emcee's τ, within the cap")  # fmt: skip
     parser.add_argument(
-        "--reference-file",
-        default=str(Path(__file__).parent / "output" / "inversion_speed_references.json"),
-        help="JSON of the long runs, reused across calls",
-    )
+        "--reference-file", default=str(REFERENCE_STORE),
+        help="JSON of the long reference runs (studies/reference_posteriors.py)",
+    )  # fmt: skip
     args = parser.parse_args()
     if args.combine:
         rows = [row for path in args.combine for row in json.loads(Path(path).read_text())["shots"]]

@@ -14,7 +14,7 @@ that are not priors.
 
 from lidarinv.inference.priors_file import read_priors_file
 
-from .invert import invert_shot, prepare_problem
+from .invert import invert_shot, prepare_problem, sample_prepared
 from .likelihood.gaussian import ShotLikelihood, model_moments
 from .model.parameters import default_space
 from .model.priors import PRIOR_KINDS, LogUniform, TruncatedNormal, Uniform, make_prior
@@ -59,4 +59,5 @@ __all__ = [
     "prepare_problem",
     "read_priors_file",
     "run_sampler",
+    "sample_prepared",
 ]

@@ -102,10 +102,16 @@ def invert_shot(
     True
     """
     rng = np.random.default_rng() if rng is None else rng
-    # Every product here is small (tens to hundreds of rows): a threaded BLAS gains little
-    # on them and, sharing the cores with other work (batch workers, studies), stalls.
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         return _invert(observation, settings, rng, progress, backend_path)
+
+
+def one_blas_thread():
+    """BLAS held to one thread while a shot is inverted. Every product here is small (tens
+    to hundreds of rows): a threaded BLAS gains little on them and, sharing the cores with
+    other work (batch workers, studies), stalls; a triangular solve of 11 rows measured
+    30 µs on one thread and 8 ms threaded beside two busy processes."""
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 @dataclass
@@ -176,6 +182,11 @@ def prepare_problem(
         it can apply, the instrument model's error sized by the pilot's residuals
         (:func:`.model_error.shot_floor`), and the sampler's start.
     """
+    with one_blas_thread():
+        return _prepare(observation, settings, rng)
+
+
+def _prepare(observation, settings, rng) -> Preparation:
     settings = InversionSettings() if settings is None else settings
     if settings.cohorts == AUTO:
         problem, estimate, choice = choose_cohorts(observation, settings, rng)
@@ -232,17 +243,46 @@ def prepare_problem(
 
 
 def _invert(observation, settings, rng, progress, backend_path) -> InversionResult:
-    prepared = prepare_problem(observation, settings, rng)
-    problem = prepared.problem
+    prepared = _prepare(observation, settings, rng)
     backend = None
     if backend_path is not None:
         name = f"shot_{observation.shot_id}"
         backend = emcee.backends.HDFBackend(str(backend_path), name=name)
+    return _sample(prepared, rng, None, progress, backend)
+
+
+def sample_prepared(
+    prepared: Preparation, rng, sampler=None, *, progress=False, backend=None
+) -> InversionResult:
+    """Sample a prepared posterior and collect its result: the second half of
+    :func:`invert_shot`.
+
+    Parameters
+    ----------
+    prepared : Preparation
+        :func:`prepare_problem`'s outcome; it is not changed, so that independent runs
+        (restarts with generators of their own) can sample the same posterior.
+    rng : numpy.random.Generator
+    sampler : SamplerSettings, optional
+        In place of the problem's own sampler settings.
+    progress : bool
+    backend : emcee backend, optional
+
+    Returns
+    -------
+    InversionResult
+    """
+    with one_blas_thread():
+        return _sample(prepared, rng, sampler, progress, backend)
+
+
+def _sample(prepared, rng, sampler, progress, backend) -> InversionResult:
+    problem = prepared.problem
     run = run_sampler(
         problem.log_posterior,
         problem.space,
         rng,
-        problem.settings.sampler,
+        problem.settings.sampler if sampler is None else sampler,
         backend=backend,
         progress=progress,
         start=prepared.start,

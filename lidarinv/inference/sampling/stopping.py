@@ -14,7 +14,6 @@ emcee's τ of every coordinate, stable between checks), is kept for comparison
 (``studies/inversion_speed.py --stop-rule``).
 """
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -159,29 +158,18 @@ def quantity_diagnostics(draws: dict, thin: int = 1) -> dict:
     import arviz as az  # imported on first use: it is slow to import
 
     out = {}
-    finite = {}
     for name, values in draws.items():
         values = np.asarray(values, float).T  # (chains, draws)
         if values.shape[1] < 4 or not np.all(np.isfinite(values)):
             out[name] = dict.fromkeys(DIAGNOSTICS, np.nan)
         elif np.ptp(values) == 0:  # held fixed: nothing to wait for
             out[name] = {**dict.fromkeys(DIAGNOSTICS, np.nan), "tau": 0.0}
-        else:
-            finite[name] = values
-    if finite:
-        with warnings.catch_warnings():  # a short chain of many walkers is no mistake here
-            warnings.filterwarnings("ignore", "More chains", UserWarning)
-            dataset = az.convert_to_dataset(finite)
-        bulk = az.ess(dataset, method="bulk")
-        tail = az.ess(dataset, method="tail")
-        blocks = {name: sub_ensemble_chains(values) for name, values in finite.items()}
-        rhat = az.rhat(az.convert_to_dataset(blocks), method="rank")
-        for name, values in finite.items():
-            ess_bulk = float(bulk[name])
+        else:  # ArviZ's array path: the same functions as for a dataset, without xarray
+            ess_bulk = float(az.ess(values, method="bulk"))
             out[name] = {
                 "ess_bulk": ess_bulk,
-                "ess_tail": float(tail[name]),
-                "rhat": float(rhat[name]),
+                "ess_tail": float(az.ess(values, method="tail")),
+                "rhat": float(az.rhat(sub_ensemble_chains(values), method="rank")),
                 "tau": values.size * thin / ess_bulk if ess_bulk > 0 else np.inf,
             }
     return {name: out[name] for name in draws}

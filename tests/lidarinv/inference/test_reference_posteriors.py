@@ -1,0 +1,88 @@
+"""Default inversions of real shots against long reference runs (issue 46).
+
+``tests/data/reference_posteriors.json`` holds, per shot, the reported quantities'
+5/50/95 % quantiles from independent restarts of one prepared posterior, each run far
+beyond the stopping rule (``studies/reference_posteriors.py``). A default inversion with
+the reference's seed samples the same posterior; its quantiles must lie within
+:data:`TOLERANCE_SD` posterior sd of the reference's. The shipped GEDI shots are inverted
+here (seconds each); the LVIS shots, minutes each, by ``studies/inversion_speed.py
+--data``.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lidarinv.inference import invert_shot
+from lidarinv.io import example_file, iter_observations
+from lidarinv.observe import Observation
+
+STORE = Path(__file__).resolve().parents[2] / "data" / "reference_posteriors.json"
+REFERENCES = json.loads(STORE.read_text())
+#: Largest |quantile − reference's| asked of a default run, in posterior sd (issue 46).
+TOLERANCE_SD = 0.2
+#: Largest Monte Carlo error of a reference's own quantiles (the restarts' sd about each
+#: other over √restarts), in posterior sd: half the tolerance.
+REFERENCE_ERROR_SD = 0.5 * TOLERANCE_SD
+
+
+def _shipped(instrument):
+    """The shipped observations of an instrument that the store holds references of."""
+    shots = iter_observations(example_file(f"{instrument}-l1b"))
+    held = {o.shot_id: o for o in shots if isinstance(o, Observation)}
+    return [
+        (held[int(r["shot"])], r)
+        for r in REFERENCES.values()
+        if r["instrument"] == instrument and int(r["shot"]) in held
+    ]
+
+
+def quantile_errors(result, reference) -> dict:
+    """|run − reference| of each quantity's 5/50/95 % quantiles, in reference sd."""
+    out = {}
+    for name, ref in reference["reported"].items():
+        values = result.column(name)
+        values = values[np.isfinite(values)]
+        q = np.percentile(values, [5, 50, 95])
+        out[name] = float(np.max(np.abs(q - ref["quantiles"]))) / ref["sd"]
+    return out
+
+
+def test_the_store_holds_long_runs_of_both_storey_models_and_instruments():
+    """Issue 46's set: two-storey and one-storey LVIS shots and GEDI shots, each from at
+    least two restarts and 40 000 steps in all."""
+    records = list(REFERENCES.values())
+    kinds = {(r["instrument"], r["cohorts"]) for r in records}
+    assert {("lvis", 1), ("lvis", 2), ("gedi", 1)} <= kinds
+    for r in records:
+        assert r["restarts"] >= 2 and r["restarts"] * r["steps_per_restart"] >= 40_000
+        assert all(v["sd"] > 0 for v in r["reported"].values())
+        assert {"ground_elevation", "top_height", "cover"} <= set(r["reported"])
+
+
+def test_each_reference_is_known_to_better_than_half_the_tolerance():
+    """Restarts from their own generators agree: the pooled quantiles' Monte Carlo error is
+    well within the tolerance the default runs are held to."""
+    for key, r in REFERENCES.items():
+        assert max(r["reference_error_sd"].values()) <= REFERENCE_ERROR_SD, key
+
+
+@pytest.mark.parametrize("pair", _shipped("gedi"), ids=lambda pair: str(pair[0].shot_id))
+def test_a_default_gedi_inversion_agrees_with_the_long_runs(pair):
+    """The default settings' run stops on the rule, samples the reference's posterior (the
+    same stand model and model error from the same seed) and reports every quantity's
+    5/50/95 % quantiles within 0.2 posterior sd of the long runs'."""
+    observation, reference = pair
+    result = invert_shot(observation, rng=np.random.default_rng(reference["seed"]))
+    assert result.converged, result.flags
+    assert result.settings["cohorts"] == reference["cohorts"]
+    floor, reference_floor = (
+        result.diagnostics.get("instrument_floor"),
+        reference["instrument_floor"],
+    )
+    assert (floor is None) == (reference_floor is None)
+    assert floor is None or floor == pytest.approx(reference_floor, rel=1e-9)
+    errors = quantile_errors(result, reference)
+    assert max(errors.values()) <= TOLERANCE_SD, errors
