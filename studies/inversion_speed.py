@@ -53,7 +53,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from reference_posteriors import STORE as REFERENCE_STORE  # noqa: E402
 from speed_real_shots import (  # noqa: E402
+    compare_with_reference,
     compare_with_tau_rule,
+    held_references,
     plot_time_vs_error,
     run_real,
     variant_table,
@@ -257,14 +259,25 @@ def main():
         "--reference-file", default=str(REFERENCE_STORE),
         help="JSON of the long reference runs (studies/reference_posteriors.py)",
     )  # fmt: skip
+    parser.add_argument(
+        "--reference-seed", type=int,
+        help="seed of shots the reference file does not hold yet (that of their references)",
+    )  # fmt: skip
     args = parser.parse_args()
     if args.combine:
         rows = [row for path in args.combine for row in json.loads(Path(path).read_text())["shots"]]
+        store = Path(args.reference_file)
+        references = json.loads(store.read_text()) if store.exists() else {}
+        for row in rows:  # against the store as it is now
+            reference = references.get(f"{row['instrument']}:{row['shot']}")
+            if reference is not None:
+                compare_with_reference(row, reference)
         for shot in {row["shot"] for row in rows}:
             compare_with_tau_rule(rows, shot)
         variants = list(dict.fromkeys(row["variant"] for row in rows))
         folder = _output_folder(args.tag)
         summary = {"variants": variant_table(rows, variants), "shots": rows}
+        summary["references"] = held_references(references, rows)
         harness.write_json(folder / "summary.json", summary)
         plot_time_vs_error(rows, variants, folder / "time_vs_error.png")
         print(json.dumps(summary["variants"], indent=1))

@@ -31,6 +31,7 @@ SOURCES = {
     "forward-accuracy": "forward_runtime_vs_error/summary.json",
     "expected-model-accuracy": "stand_model_runtime_vs_error/summary.json",
     "inversion-speed": "inversion_speed{tag}/summary.json",
+    "inversion-speed-real": "inversion_speed{tag}/summary.json",
     "calibration": "recovery{tag}/summary.json",
     "calibration-out-of-family": "recovery{tag}/summary.json",
     "recovery": "recovery{tag}/summary.json",
