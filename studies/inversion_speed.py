@@ -216,6 +216,10 @@ def plot_speed(summary, configurations, path):
     plt.close(fig)
 
 
+def _optional_float(text):
+    return None if text.lower() == "none" else float(text)
+
+
 def main():
     parser = harness.parser(__doc__, seed=5)
     parser.add_argument("--n", type=int, default=3)
@@ -254,6 +258,10 @@ def main():
     parser.add_argument(
         "--min-taus", nargs="+", type=float, default=[SamplerSettings().min_taus],
         help="the ess-rhat rule's least chain in τ; one variant each",
+    )  # fmt: skip
+    parser.add_argument(
+        "--quantile-mcse", nargs="+", type=_optional_float, default=[None],
+        help="the ess-rhat rule's largest quantile MCSE (sd; 'none': not asked); one variant each",
     )  # fmt: skip
     parser.add_argument(
         "--reference-file", default=str(REFERENCE_STORE),

@@ -73,16 +73,18 @@ def real_observations(data, instrument, ids):
     return [found[i] for i in wanted]
 
 
-def stopping_variants(rules, min_taus) -> dict:
-    """{name: SamplerSettings changes} for each stopping rule asked for (one
-    ``ess-rhat`` variant per ``min_taus`` value)."""
+def stopping_variants(rules, min_taus, quantile_mcse=(None,)) -> dict:
+    """{name: SamplerSettings changes} for each stopping rule asked for (one ``ess-rhat``
+    variant per ``min_taus`` and ``quantile_mcse`` value)."""
     out = {}
     for rule in rules:
         if rule == "tau":
             out["tau"] = {"stop_rule": "tau"}
-        else:
-            for m in min_taus:
-                out[f"{rule}-{m:g}tau"] = {"stop_rule": rule, "min_taus": m}
+            continue
+        for m in min_taus:
+            for mcse in quantile_mcse:
+                name = f"{rule}-{m:g}tau" + ("" if mcse is None else f"-mcse{mcse:g}")
+                out[name] = {"stop_rule": rule, "min_taus": m, "quantile_mcse_max": mcse}
     return out
 
 
@@ -119,7 +121,7 @@ def run_real(args, settings) -> dict:
         *real_observations(args.data, "gedi", args.gedi_shots or []),
         *real_observations(args.data, "lvis", args.lvis_shots or []),
     ]
-    variants = stopping_variants(args.stop_rule, args.min_taus)
+    variants = stopping_variants(args.stop_rule, args.min_taus, args.quantile_mcse)
     store_path = Path(args.reference_file)
     store = json.loads(store_path.read_text()) if store_path.exists() else {}
     rows = []

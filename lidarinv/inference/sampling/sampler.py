@@ -44,6 +44,9 @@ class SamplerSettings:
         emcee's τ of every sampled coordinate, τ stable within ``tau_tolerance``.
     rhat_max, ess_min, min_taus : float
         Thresholds of the ``"ess-rhat"`` rule (:class:`.stopping.StopRule`).
+    quantile_mcse_max : float or None
+        ``"ess-rhat"`` rule: the largest Monte Carlo error of each monitored quantity's
+        5/50/95 % quantiles, in posterior sd (None: not asked).
     check_every : int
         Steps between convergence checks, at least (with τ of a few tens, 50 τ is soon
         reached, and sparser checks overshoot it).
@@ -111,6 +114,7 @@ class SamplerSettings:
     rhat_max: float = StopRule.rhat_max
     ess_min: float = StopRule.ess_min
     min_taus: float = StopRule.min_taus
+    quantile_mcse_max: float | None = StopRule.quantile_mcse_max
     check_every: int = 100
     check_growth: float = 0.1
     tau_multiple: float = 50.0
@@ -442,7 +446,7 @@ def run_sampler(
 
 
 def _rule(s: SamplerSettings) -> StopRule:
-    return StopRule(s.rhat_max, s.ess_min, s.min_taus)
+    return StopRule(s.rhat_max, s.ess_min, s.min_taus, s.quantile_mcse_max)
 
 
 def _run_length_in_taus(s: SamplerSettings) -> float:

@@ -19,7 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 #: Diagnostics of one quantity, in this order (see :func:`quantity_diagnostics`).
-DIAGNOSTICS = ("ess_bulk", "ess_tail", "rhat", "tau")
+DIAGNOSTICS = ("ess_bulk", "ess_tail", "rhat", "tau", "quantile_mcse")
+#: Posterior quantiles a result reports (%), whose Monte Carlo error the rule bounds.
+REPORTED_QUANTILES = (5.0, 50.0, 95.0)
 #: Sub-ensembles whose agreement R̂ judges: the four chains of Vehtari et al. (2021).
 SUB_ENSEMBLES = 4
 
@@ -84,11 +86,18 @@ class StopRule:
         quantiles at 5, 10 and 20 τ differed from the former 50 τ rule's by up to 0.58,
         0.34 and 0.16 sd, and on a one-storey LVIS shot at 10 and 20 τ by 0.28 and 0.11
         sd (``studies/inversion_speed.py --data``).
+    quantile_mcse_max : float or None
+        Largest Monte Carlo standard error of each quantity's 5, 50 and 95 % quantiles, in
+        posterior sd (:func:`quantile_mcse`); None asks nothing of it. ESS bounds the error
+        of a quantile only where the posterior is close to normal: a long, thin tail (top
+        height on a sparse stand) puts a 95 % quantile where draws are few, and its error
+        at ESS 400 can pass 0.2 sd.
     """
 
     rhat_max: float = 1.01
     ess_min: float = 400.0
     min_taus: float = 20.0
+    quantile_mcse_max: float | None = None
 
     def shortfalls(self, diagnostics: dict, kept_steps: int) -> list:
         """What keeps the run from stopping, quantity by quantity.
@@ -119,6 +128,9 @@ class StopRule:
             taus = kept_steps / d["tau"] if d["tau"] > 0 else np.nan
             if not taus >= self.min_taus:
                 out.append(f"{name} chain {taus:.1f} τ < {self.min_taus:g} τ (τ {d['tau']:.0f})")
+            mcse = d.get("quantile_mcse", np.nan)
+            if self.quantile_mcse_max is not None and not mcse <= self.quantile_mcse_max:
+                out.append(f"{name} quantile MCSE {mcse:.3f} sd > {self.quantile_mcse_max:g} sd")
         return out
 
 
@@ -171,8 +183,34 @@ def quantity_diagnostics(draws: dict, thin: int = 1) -> dict:
                 "ess_tail": float(az.ess(values, method="tail")),
                 "rhat": float(az.rhat(sub_ensemble_chains(values), method="rank")),
                 "tau": values.size * thin / ess_bulk if ess_bulk > 0 else np.inf,
+                "quantile_mcse": quantile_mcse(values),
             }
     return {name: out[name] for name in draws}
+
+
+def quantile_mcse(values) -> float:
+    """The largest Monte Carlo standard error of the :data:`REPORTED_QUANTILES`, in
+    posterior sd.
+
+    Parameters
+    ----------
+    values : array (chains, draws)
+
+    Returns
+    -------
+    float
+        max over q of ArviZ's ``mcse(method="quantile", prob=q)`` / sd: the error of a
+        quantile from the effective sample size of the indicator x ≤ x_q and the density
+        there (Vehtari et al. 2021, §4.3), so that a quantile in a long, thin tail needs
+        more draws than the median. NaN where the sd is 0.
+    """
+    import arviz as az
+
+    sd = float(np.std(values))
+    if not sd > 0:
+        return np.nan
+    errors = [az.mcse(values, method="quantile", prob=q / 100) for q in REPORTED_QUANTILES]
+    return float(np.max(errors)) / sd
 
 
 def coordinates_monitor(names):
