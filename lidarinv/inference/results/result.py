@@ -411,20 +411,33 @@ def _convergence_lines(quantities) -> list:
         f"{number(d['rhat'], '.3f')}/{number(d['tau'], '.0f')}"
         for name, d in quantities.items()
     ]
-    return ["ESS bulk/tail, R̂, τ (steps) of the reported quantities: " + ", ".join(cells)]
+    lines = ["ESS bulk/tail, R̂, τ (steps) of the reported quantities: " + ", ".join(cells)]
+    errors = [
+        f"{name} {d['quantile_mcse']:.3f}"
+        for name, d in quantities.items()
+        if d.get("quantile_mcse") is not None and np.isfinite(d["quantile_mcse"])
+    ]
+    if errors:
+        lines.append(
+            "Monte Carlo error of the 5/50/95 % quantiles (posterior sd): " + ", ".join(errors)
+        )
+    return lines
 
 
 def _convergence_extremes(quantities) -> dict:
-    """The smallest bulk and tail ESS and the largest R̂ over the reported quantities."""
+    """The smallest bulk and tail ESS, the largest R̂ and the largest quantile Monte Carlo
+    error (posterior sd) over the reported quantities."""
 
     def extreme(key, pick):  # over the quantities where it is known
-        known = [d[key] for d in quantities.values() if d[key] is not None and np.isfinite(d[key])]
+        values = [d.get(key) for d in quantities.values()]
+        known = [v for v in values if v is not None and np.isfinite(v)]
         return float(pick(known)) if known else np.nan
 
     return {
         "min_ess_bulk": extreme("ess_bulk", min),
         "min_ess_tail": extreme("ess_tail", min),
         "max_rhat": extreme("rhat", max),
+        "max_quantile_mcse": extreme("quantile_mcse", max),
     }
 
 

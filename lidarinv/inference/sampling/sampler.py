@@ -424,7 +424,7 @@ def run_sampler(
         tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else sampler.iteration / 10
         thin = max(1, int(tau_max))
     if not converged:
-        flags.append(_not_converged(sampler.iteration, s, tau, shortfalls))
+        flags.append(_not_converged(sampler.iteration, s, tau, shortfalls, quantities))
     acceptance = sampler.acceptance_fraction
     if np.any(acceptance < 0.05):
         flags.append(f"low acceptance in {int(np.sum(acceptance < 0.05))} walker(s)")
@@ -501,12 +501,21 @@ _CHECKS = {"ess-rhat": _check_ess_rhat, "tau": _check_tau}
 assert set(_CHECKS) == set(STOP_RULES)
 
 
-def _not_converged(steps, s: SamplerSettings, tau, shortfalls) -> str:
-    """The flag of a run stopped by the step cap: what failed, and by how much."""
+def _not_converged(steps, s: SamplerSettings, tau, shortfalls, quantities) -> str:
+    """The flag of a run stopped by the step cap: what failed, by how much, and how far
+    the reported quantiles may be off (their largest Monte Carlo error)."""
     if s.stop_rule == "tau":
         return (
             f"not converged: {steps} steps < {s.tau_multiple:g} τ "
             f"(max τ = {np.max(tau):.0f}) or τ not stable"
         )
     failed = "; ".join(shortfalls) if shortfalls else "too few steps after burn-in to judge"
+    errors = {k: d.get("quantile_mcse", np.nan) for k, d in quantities.items()}
+    errors = {k: v for k, v in errors.items() if np.isfinite(v)}
+    if errors:
+        worst = max(errors, key=errors.get)
+        failed += (
+            f"; the reported 5/50/95 % quantiles' Monte Carlo error reaches "
+            f"{errors[worst]:.2f} posterior sd ({worst})"
+        )
     return f"not converged at the step cap ({steps} steps): {failed}"

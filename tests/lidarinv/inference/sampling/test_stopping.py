@@ -215,13 +215,22 @@ def test_every_result_reports_each_quantitys_ess_and_rhat(tmp_path):
 
     result = tiny_result()
     result.diagnostics["quantities"] = {
-        "top_height": {"ess_bulk": 812.0, "ess_tail": 640.0, "rhat": 1.003, "tau": 55.0},
+        "top_height": {
+            "ess_bulk": 812.0,
+            "ess_tail": 640.0,
+            "rhat": 1.003,
+            "tau": 55.0,
+            "quantile_mcse": 0.041,
+        },  # fmt: skip
         "rh98": {"ess_bulk": 390.0, "ess_tail": np.nan, "rhat": 1.02, "tau": 80.0},
     }
     line = "ESS bulk/tail, R̂, τ (steps) of the reported quantities: top_height 812/640/1.003/55, rh98 390/nan/1.020/80"
     assert line in result.summary_table().splitlines()
     row = result.summary_row()
     assert (row["min_ess_bulk"], row["min_ess_tail"], row["max_rhat"]) == (390.0, 640.0, 1.02)
+    assert row["max_quantile_mcse"] == 0.041
+    mcse = "Monte Carlo error of the 5/50/95 % quantiles (posterior sd): top_height 0.041"
+    assert mcse in result.summary_table().splitlines()
     result.save(tmp_path / "posterior.h5")
     back = InversionResult.load(tmp_path / "posterior.h5")
     assert back.diagnostics["quantities"]["top_height"]["rhat"] == 1.003
