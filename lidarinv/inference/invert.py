@@ -278,11 +278,13 @@ def sample_prepared(
 
 def _sample(prepared, rng, sampler, progress, backend) -> InversionResult:
     problem = prepared.problem
+    if sampler is not None:  # the result records the settings it was sampled with
+        problem = replace(problem, settings=replace(problem.settings, sampler=sampler))
     run = run_sampler(
         problem.log_posterior,
         problem.space,
         rng,
-        problem.settings.sampler if sampler is None else sampler,
+        problem.settings.sampler,
         backend=backend,
         progress=progress,
         start=prepared.start,

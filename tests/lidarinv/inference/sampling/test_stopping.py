@@ -221,7 +221,7 @@ def test_every_result_reports_each_quantitys_ess_and_rhat(tmp_path):
             "rhat": 1.003,
             "tau": 55.0,
             "quantile_mcse": 0.041,
-        },  # fmt: skip
+        },
         "rh98": {"ess_bulk": 390.0, "ess_tail": np.nan, "rhat": 1.02, "tau": 80.0},
     }
     line = "ESS bulk/tail, R̂, τ (steps) of the reported quantities: top_height 812/640/1.003/55, rh98 390/nan/1.020/80"
