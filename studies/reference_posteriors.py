@@ -4,7 +4,7 @@ Usage::
 
     python studies/reference_posteriors.py --data DATA --gedi-shots ID [ID ...]
         --lvis-shots ID [ID ...] [--restarts 4] [--steps 25000] [--seed 0]
-        [--store tests/data/reference_posteriors.json]
+        [--store tests/data/reference_posteriors.json] [--extend]
     python studies/reference_posteriors.py --merge STORE.json ... [--store PATH]
 
 Each shot is prepared once, at default settings, with the generator ``--seed`` (the
@@ -15,9 +15,11 @@ prepared posterior is then sampled ``--restarts`` times, independently, each run
 ``--steps`` steps whatever its diagnostics say (issue 46 asks for 100 000 steps or
 independent restarts; four restarts of 25 000 steps are both). Per shot the store keeps
 the reported quantities' 5/50/95 % quantiles and sd, of each restart and of the restarts
-pooled, the largest difference between a restart's quantile and the pooled one, and the
-pooled quantiles' Monte Carlo error (the restarts' sd over √restarts), both in pooled
-sd. ``--merge`` joins stores written by separate calls.
+pooled (each quantile averaged over the restarts), the largest difference between a
+restart's quantile and the pooled one, and the pooled quantiles' Monte Carlo error (the
+restarts' sd over √restarts), both in posterior sd. ``--extend`` adds restarts (with
+generators of their own) to a shot the store holds; ``--merge`` joins stores written by
+separate calls.
 
 The store (JSON, merged shot by shot so that shots may run in separate calls) is test
 data: ``tests/lidarinv/inference/test_reference_posteriors.py`` checks default runs of
@@ -36,7 +38,6 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 from speed_real_shots import (  # noqa: E402
-    AGREEMENT_QUANTILES,
     AGREEMENT_QUANTITIES,
     real_observations,
     reported_quantiles,
@@ -48,19 +49,15 @@ from lidarinv.inference import InversionSettings, prepare_problem, sample_prepar
 STORE = Path(__file__).resolve().parent.parent / "tests" / "data" / "reference_posteriors.json"
 
 
-def pooled_quantiles(results) -> dict:
-    """{name: {"quantiles", "sd"}} of the compared quantities over the results' draws
-    together (each restart contributes its kept draws)."""
+def pooled_quantiles(restarts: list) -> dict:
+    """{name: {"quantiles", "sd"}}: each quantile and the sd averaged over the restarts
+    (equal runs of one posterior), so that restarts added later join the same way."""
     out = {}
-    for name in AGREEMENT_QUANTITIES:
-        columns = [r.column(name) for r in results if name in r.quantity_names]
-        if len(columns) != len(results):
-            continue
-        values = np.concatenate(columns)
-        values = values[np.isfinite(values)]
-        if values.size > 1:
-            q = np.percentile(values, AGREEMENT_QUANTILES)
-            out[name] = {"quantiles": [float(v) for v in q], "sd": float(np.std(values))}
+    names = set.intersection(*(set(run) for run in restarts))
+    for name in [n for n in AGREEMENT_QUANTITIES if n in names]:
+        quantiles = np.mean([run[name]["quantiles"] for run in restarts], axis=0)
+        sd = float(np.mean([run[name]["sd"] for run in restarts]))
+        out[name] = {"quantiles": [float(v) for v in quantiles], "sd": sd}
     return out
 
 
@@ -98,44 +95,50 @@ def pooled_error(restarts: list, pooled: dict) -> dict:
 
 def finish(record: dict) -> dict:
     """A record with the quantities derived from its restarts' quantiles."""
-    restarts, pooled = record["restart_reported"], record["reported"]
+    restarts = record["restart_reported"]
+    record["reported"] = pooled = pooled_quantiles(restarts)
     record["restart_spread_sd"] = restart_spread(restarts, pooled)
     record["reference_error_sd"] = pooled_error(restarts, pooled)
     return record
 
 
-def reference(observation, seed: int, restarts: int, steps: int) -> dict:
+def reference(observation, seed: int, restarts: int, steps: int, earlier=None) -> dict:
     """One shot's reference: ``restarts`` runs of ``steps`` steps of the posterior that
-    ``seed`` prepares."""
+    ``seed`` prepares, joined to the ``earlier`` record's restarts where given."""
     clock, cpu = time.perf_counter(), time.process_time()
     prepared = prepare_problem(observation, InversionSettings(), np.random.default_rng(seed))
     settings = prepared.problem.settings.sampler
     long_run = replace(settings, max_steps=steps, min_taus=1e9)  # never stops on the rule
-    generators = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(restarts)]
+    first = 0 if earlier is None else earlier["restarts"]
+    seeds = np.random.SeedSequence(seed).spawn(first + restarts)[first:]
     results = []
-    for k, rng in enumerate(generators):
-        results.append(sample_prepared(prepared, rng, long_run))
-        print(f"  restart {k + 1}/{restarts}: {time.perf_counter() - clock:.0f} s", flush=True)
-    per_restart = [reported_quantiles(r) for r in results]
-    pooled = pooled_quantiles(results)
+    for k, child in enumerate(seeds):
+        results.append(sample_prepared(prepared, np.random.default_rng(child), long_run))
+        print(f"  restart {first + k + 1}: {time.perf_counter() - clock:.0f} s", flush=True)
     diagnostics = prepared.diagnostics()
-    return finish(
-        {
-            "instrument": observation.instrument,
-            "shot": str(observation.shot_id),
-            "seed": seed,
-            "restarts": restarts,
-            "steps_per_restart": steps,
-            "cohorts": prepared.problem.settings.cohorts,
-            "instrument_floor": diagnostics.get("instrument_floor"),
-            "draws": int(sum(r.samples.shape[0] for r in results)),
-            "largest_tau": [largest_tau(r) for r in results],
-            "reported": pooled,
-            "restart_reported": per_restart,
-            "seconds": time.perf_counter() - clock,
-            "cpu_seconds": time.process_time() - cpu,
-        }
-    )
+    record = {
+        "instrument": observation.instrument,
+        "shot": str(observation.shot_id),
+        "seed": seed,
+        "restarts": first + restarts,
+        "steps_per_restart": steps,
+        "cohorts": prepared.problem.settings.cohorts,
+        "instrument_floor": diagnostics.get("instrument_floor"),
+        "draws": int(sum(r.samples.shape[0] for r in results)),
+        "largest_tau": [largest_tau(r) for r in results],
+        "restart_reported": [reported_quantiles(r) for r in results],
+        "seconds": time.perf_counter() - clock,
+        "cpu_seconds": time.process_time() - cpu,
+    }
+    if earlier is not None:
+        same = ("seed", "steps_per_restart", "cohorts", "instrument_floor")
+        if any(earlier[k] != record[k] for k in same):
+            raise SystemExit(f"shot {record['shot']}: the stored reference differs in {same}")
+        for key in ("draws", "seconds", "cpu_seconds"):
+            record[key] += earlier[key]
+        for key in ("largest_tau", "restart_reported"):
+            record[key] = earlier[key] + record[key]
+    return finish(record)
 
 
 def main():
@@ -148,6 +151,8 @@ def main():
     parser.add_argument("--restarts", type=int, default=4)
     parser.add_argument("--steps", type=int, default=25_000, help="steps of each restart")
     parser.add_argument("--store", default=str(STORE), help="JSON file the references join")
+    parser.add_argument("--extend", action="store_true",
+                        help="add the restarts to shots --store holds already")  # fmt: skip
     parser.add_argument("--merge", nargs="+", metavar="STORE",
                         help="join these stores' records into --store (no runs)")  # fmt: skip
     args = parser.parse_args()
@@ -169,9 +174,12 @@ def main():
     folder = harness.output_folder("reference_posteriors", args.tag)
     for observation in shots:
         print(f"{observation.instrument} {observation.shot_id}", flush=True)
-        record = reference(observation, args.seed, args.restarts, args.steps)
+        key = f"{observation.instrument}:{observation.shot_id}"
         store = json.loads(store_path.read_text()) if store_path.exists() else {}
-        store[f"{record['instrument']}:{record['shot']}"] = record
+        earlier = store.get(key) if args.extend else None
+        record = reference(observation, args.seed, args.restarts, args.steps, earlier)
+        store = json.loads(store_path.read_text()) if store_path.exists() else {}
+        store[key] = record
         store_path.parent.mkdir(parents=True, exist_ok=True)
         harness.write_json(store_path, dict(sorted(store.items())))
         harness.write_json(folder / "summary.json", store)
