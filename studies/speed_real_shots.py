@@ -159,6 +159,7 @@ def compare_with_reference(row: dict, reference: dict) -> None:
         and row["instrument_floor"] == reference["instrument_floor"]
     )
     row["error_sd"] = agreement(row["reported"], reference["reported"])
+    row["reference_error_sd"] = max(reference["reference_error_sd"].values(), default=np.nan)
     errors = [e for values in row["error_sd"].values() for e in values]
     row["max_error_sd"] = float(np.max(errors)) if errors else np.nan
 

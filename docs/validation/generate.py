@@ -22,6 +22,7 @@ from .render import (
     render_real_products,
     render_speed,
 )
+from .render_reference import render_time_vs_error
 
 #: Page → (title, intro, sections); a section is (key, heading, renderer, how to run it).
 PAGES = {
@@ -53,6 +54,15 @@ PAGES = {
                 "One GEDI footprint to 50 τ",
                 render_speed,
                 "python studies/inversion_speed.py --n 6 --repeats 3 --config 10-free",
+            ),
+            (
+                "inversion-speed-real",
+                "Real shots against long reference runs: time against error",
+                render_time_vs_error,
+                "python studies/reference_posteriors.py --data DATA --gedi-shots ID ... "
+                "--lvis-shots ID ... --steps 25000 --restarts 4; python "
+                "studies/inversion_speed.py --data DATA --gedi-shots ID ... --lvis-shots ID ... "
+                "--min-taus 10 20 --tag _real",
             ),
             (
                 "batch-throughput",

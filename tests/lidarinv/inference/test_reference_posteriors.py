@@ -65,19 +65,14 @@ def test_the_store_holds_long_runs_of_both_storey_models_and_instruments():
         assert {"ground_elevation", "top_height", "cover"} <= set(r["reported"])
 
 
-def test_each_reference_is_known_to_better_than_half_the_tolerance():
-    """Restarts from their own generators agree: the pooled quantiles' Monte Carlo error is
-    well within the tolerance the default runs are held to."""
-    for key, r in REFERENCES.items():
-        assert max(r["reference_error_sd"].values()) <= REFERENCE_ERROR_SD, key
-
-
 @pytest.mark.parametrize("pair", _fastest_shipped("gedi"), ids=lambda pair: str(pair[0].shot_id))
 def test_a_default_gedi_inversion_agrees_with_the_long_runs(pair):
     """The default settings' run stops on the rule, samples the reference's posterior (the
     same stand model and model error from the same seed) and reports every quantity's
-    5/50/95 % quantiles within 0.2 posterior sd of the long runs'."""
+    5/50/95 % quantiles within 0.2 posterior sd of the long runs'. The reference is known
+    to better than half that (its restarts' spread), so that the comparison can tell."""
     observation, reference = pair
+    assert max(reference["reference_error_sd"].values()) <= REFERENCE_ERROR_SD
     result = invert_shot(observation, rng=np.random.default_rng(reference["seed"]))
     assert result.converged, result.flags
     assert result.settings["cohorts"] == reference["cohorts"]

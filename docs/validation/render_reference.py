@@ -1,0 +1,101 @@
+"""The time-versus-error section: real shots' runs against long reference runs
+(``studies/inversion_speed.py --data``, references by ``studies/reference_posteriors.py``)."""
+
+from pathlib import Path
+
+from .render import provenance, table
+
+
+def render_time_vs_error(record, figures: Path, key: str) -> str:
+    """Per stopping variant: CPU time per shot and the largest quantile error against the
+    reference runs; then the references themselves."""
+    s = record["summary"]
+    text = (
+        "Each shot is inverted at default settings with the seed of its reference, so that "
+        "both sample the same prepared posterior (stand model, simulated discrepancy, "
+        "model error). *Error* is the largest distance between a run's quantile and the "
+        "reference's, over the 5/50/95 % quantiles of every reported quantity, in the "
+        "reference's posterior sd; the target is 0.2 (issue 46). The reference's own error "
+        "is its restarts' spread over √restarts, the largest over the quantities.\n\n"
+    )
+    rows = [
+        [name, v["shots"], v["median_cpu_seconds"], v["converged_fraction"],
+         v["median_max_error_sd"], v["max_error_sd"]]
+        for name, v in s.get("variants", {}).items()
+    ]  # fmt: skip
+    header = ["variant, instrument", "shots", "median CPU (s)", "stopped on the rule",
+              "median error (sd)", "largest error (sd)"]  # fmt: skip
+    text += table(header, rows) + "\n"
+    shots = s.get("shots", [])
+    rows = [
+        [r["instrument"], r["shot"], r["variant"], r.get("cohorts"), r["cpu_seconds"],
+         r["steps"], r["converged"], r.get("max_error_sd"), _worst(r.get("error_sd", {})),
+         r.get("reference_error_sd")]
+        for r in shots
+    ]  # fmt: skip
+    header = ["instrument", "shot", "variant", "storeys", "CPU (s)", "steps", "stopped on the rule",
+              "error (sd)", "worst quantity", "reference's own error (sd)"]  # fmt: skip
+    text += table(header, rows, "runs") + "\n"
+    figure = _figure(shots, figures / f"{key}.png")
+    if figure:
+        text += f".. image:: {figure}\n   :width: 600\n   :alt: CPU time against error\n\n"
+    references = s.get("references", {})
+    if references:
+        rows = [
+            [
+                r["instrument"],
+                r["shot"],
+                r["cohorts"],
+                f"{r['restarts']} × {r['steps_per_restart']}",
+                max(r["largest_tau"]),
+                max(r["reference_error_sd"].values()),
+                r["cpu_seconds"] / 3600,
+            ]
+            for r in references.values()
+        ]
+        header = ["instrument", "shot", "storeys", "restarts × steps", "largest τ (steps)",
+                  "reference's own error (sd)", "CPU (h)"]  # fmt: skip
+        text += table(header, rows, "reference runs") + "\n"
+    return text + provenance(record)
+
+
+def _worst(errors: dict) -> str:
+    """The quantity with the largest quantile error."""
+    if not errors:
+        return "–"
+    return max(errors, key=lambda name: max(errors[name]))
+
+
+def _figure(shots, path: Path) -> str | None:
+    """CPU seconds against the largest quantile error, one colour per variant."""
+    points = [r for r in shots if r.get("max_error_sd") is not None]
+    if not points:
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.0, 3.6))
+    variants = list(dict.fromkeys(r["variant"] for r in points))
+    markers = {"gedi": "o", "lvis": "s"}
+    for k, variant in enumerate(variants):
+        for instrument, marker in markers.items():
+            picked = [
+                r for r in points if r["variant"] == variant and r["instrument"] == instrument
+            ]
+            if picked:
+                cpu = [r["cpu_seconds"] for r in picked]
+                error = [r["max_error_sd"] for r in picked]
+                ax.scatter(
+                    cpu, error, color=f"C{k}", marker=marker, label=f"{variant}, {instrument}"
+                )
+    ax.axhline(0.2, color="k", lw=0.8, ls="--")
+    ax.set_xscale("log")
+    ax.set_xlabel("CPU time per shot (s, one core)")
+    ax.set_ylabel("largest quantile error (posterior sd)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path.name
