@@ -149,10 +149,11 @@ def quantity_diagnostics(draws: dict, thin: int = 1) -> dict:
     dict of name → dict
         ``ess_bulk``, ``ess_tail`` (ArviZ ``ess`` methods ``"bulk"`` and ``"tail"``, each
         walker a chain), ``rhat`` (``rhat`` method ``"rank"``, of
-        :data:`SUB_ENSEMBLES` blocks of walkers: :func:`sub_ensemble_chains`) and ``tau``
-        (steps): walkers·steps/bulk ESS, the autocorrelation time the bulk ESS implies.
-        NaN where a quantity is not finite or the chain too short; ``tau`` 0 and the
-        rest NaN where it does not vary.
+        :data:`SUB_ENSEMBLES` blocks of walkers: :func:`sub_ensemble_chains`), ``tau``
+        (steps): walkers·steps/bulk ESS, the autocorrelation time the bulk ESS implies,
+        and ``quantile_mcse`` (posterior sd, :func:`quantile_mcse`). NaN where a quantity
+        is not finite or the chain too short; ``tau`` 0 and the rest NaN where it does not
+        vary.
 
     Notes
     -----
