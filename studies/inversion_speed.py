@@ -55,10 +55,9 @@ from reference_posteriors import STORE as REFERENCE_STORE  # noqa: E402
 from speed_real_shots import (  # noqa: E402
     compare_with_reference,
     compare_with_tau_rule,
-    held_references,
-    plot_time_vs_error,
+    read_store,
     run_real,
-    variant_table,
+    write_summary,
 )
 
 from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
@@ -274,8 +273,7 @@ def main():
     args = parser.parse_args()
     if args.combine:
         rows = [row for path in args.combine for row in json.loads(Path(path).read_text())["shots"]]
-        store = Path(args.reference_file)
-        references = json.loads(store.read_text()) if store.exists() else {}
+        references = read_store(args.reference_file)
         for row in rows:  # against the store as it is now
             reference = references.get(f"{row['instrument']}:{row['shot']}")
             if reference is not None:
@@ -283,11 +281,7 @@ def main():
         for shot in {row["shot"] for row in rows}:
             compare_with_tau_rule(rows, shot)
         variants = list(dict.fromkeys(row["variant"] for row in rows))
-        folder = _output_folder(args.tag)
-        summary = {"variants": variant_table(rows, variants), "shots": rows}
-        summary["references"] = held_references(references, rows)
-        harness.write_json(folder / "summary.json", summary)
-        plot_time_vs_error(rows, variants, folder / "time_vs_error.png")
+        summary = write_summary(rows, variants, references, _output_folder(args.tag))
         print(json.dumps(summary["variants"], indent=1))
         return
     if args.data:

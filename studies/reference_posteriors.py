@@ -39,6 +39,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from speed_real_shots import (  # noqa: E402
     AGREEMENT_QUANTITIES,
+    read_store,
     real_observations,
     reported_quantiles,
 )
@@ -158,7 +159,7 @@ def main():
     args = parser.parse_args()
     store_path = Path(args.store)
     if args.merge:
-        store = json.loads(store_path.read_text()) if store_path.exists() else {}
+        store = read_store(store_path)
         for path in args.merge:
             store.update({k: finish(v) for k, v in json.loads(Path(path).read_text()).items()})
         harness.write_json(store_path, dict(sorted(store.items())))
@@ -175,10 +176,9 @@ def main():
     for observation in shots:
         print(f"{observation.instrument} {observation.shot_id}", flush=True)
         key = f"{observation.instrument}:{observation.shot_id}"
-        store = json.loads(store_path.read_text()) if store_path.exists() else {}
-        earlier = store.get(key) if args.extend else None
+        earlier = read_store(store_path).get(key) if args.extend else None
         record = reference(observation, args.seed, args.restarts, args.steps, earlier)
-        store = json.loads(store_path.read_text()) if store_path.exists() else {}
+        store = read_store(store_path)  # read again: another call may have written meanwhile
         store[key] = record
         store_path.parent.mkdir(parents=True, exist_ok=True)
         harness.write_json(store_path, dict(sorted(store.items())))
