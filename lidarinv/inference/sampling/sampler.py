@@ -410,10 +410,12 @@ def run_sampler(
         burn = burn_in(sampler.iteration, tau, s.burn_taus, floor)
     if s.stop_rule == "ess-rhat":
         # per coordinate, from ArviZ's bulk ESS as for the monitored quantities
-        coordinates = _diagnostics(sampler, burn, tau, s, coordinates_monitor(range(ndim)))
+        by_coordinate = coordinates_monitor(range(ndim))
+        coordinates = _diagnostics(sampler, burn, tau, s, by_coordinate, quantile_errors=False)
         coordinate_tau = np.array([coordinates[i]["tau"] for i in range(ndim)])
-        if not converged:
+        if not converged or s.quantile_mcse_max is None:  # the result reports quantile MCSE
             quantities = _diagnostics(sampler, burn, tau, s, monitor)
+        if not converged:
             shortfalls = _rule(s).shortfalls(quantities, sampler.iteration - burn)
         tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else np.inf
         # 2/5 τ apart at the default resolution: 50 draws a walker at 20 τ
@@ -463,19 +465,21 @@ def _diagnostics_thin(kept, tau, s: SamplerSettings) -> int:
     return max(thin, kept // 500)
 
 
-def _diagnostics(sampler, discard, tau, s: SamplerSettings, monitor) -> dict:
+def _diagnostics(sampler, discard, tau, s: SamplerSettings, monitor, quantile_errors=True):
     """:func:`.stopping.quantity_diagnostics` of the monitored quantities after
     ``discard`` steps."""
     thin = _diagnostics_thin(sampler.iteration - discard, tau, s)
     chain = sampler.get_chain(discard=discard, thin=thin)
     blobs = sampler.get_blobs(discard=discard, thin=thin)
-    return quantity_diagnostics(monitor(chain, blobs), thin)
+    return quantity_diagnostics(monitor(chain, blobs), thin, quantile_errors)
 
 
 def _check_ess_rhat(sampler, discard, tau, s: SamplerSettings, monitor):
     """The ``"ess-rhat"`` check: the monitored quantities' τ, whether they pass, what
-    fails, and their diagnostics."""
-    quantities = _diagnostics(sampler, discard, tau, s, monitor)
+    fails, and their diagnostics (the quantile MCSE only where the rule asks for it: the
+    result's is computed once, after the run)."""
+    gated = s.quantile_mcse_max is not None
+    quantities = _diagnostics(sampler, discard, tau, s, monitor, quantile_errors=gated)
     new_tau = np.array([d["tau"] for d in quantities.values()])
     new_tau = np.where(np.isnan(new_tau), np.inf, new_tau)
     shortfalls = _rule(s).shortfalls(quantities, sampler.iteration - discard)

@@ -134,7 +134,7 @@ class StopRule:
         return out
 
 
-def quantity_diagnostics(draws: dict, thin: int = 1) -> dict:
+def quantity_diagnostics(draws: dict, thin: int = 1, quantile_errors: bool = True) -> dict:
     """Bulk and tail ESS, rank-normalised split R̂ and τ of each quantity.
 
     Parameters
@@ -143,6 +143,8 @@ def quantity_diagnostics(draws: dict, thin: int = 1) -> dict:
         Each quantity along the chain after burn-in (emcee's layout), thinned by ``thin``.
     thin : int
         The thinning of ``draws``: τ is given in steps of the unthinned chain.
+    quantile_errors : bool
+        Compute ``quantile_mcse`` (about half again the cost of the rest); NaN if not.
 
     Returns
     -------
@@ -184,7 +186,7 @@ def quantity_diagnostics(draws: dict, thin: int = 1) -> dict:
                 "ess_tail": float(az.ess(values, method="tail")),
                 "rhat": float(az.rhat(sub_ensemble_chains(values), method="rank")),
                 "tau": values.size * thin / ess_bulk if ess_bulk > 0 else np.inf,
-                "quantile_mcse": quantile_mcse(values),
+                "quantile_mcse": quantile_mcse(values) if quantile_errors else np.nan,
             }
     return {name: out[name] for name in draws}
 

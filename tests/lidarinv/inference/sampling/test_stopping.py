@@ -71,6 +71,8 @@ def test_the_rule_stops_later_on_a_bimodal_target_than_on_a_gaussian(seed):
     assert plain.converged and twin.converged, (plain.flags, twin.flags)
     assert twin.chain.shape[0] > 1.3 * plain.chain.shape[0]
     assert twin.quantities["x0"]["tau"] > 1.3 * plain.quantities["x0"]["tau"]
+    # the result's quantile error is computed once the run has stopped, the rule not asking
+    assert 0 < plain.quantities["x0"]["quantile_mcse"] < twin.quantities["x0"]["quantile_mcse"]
     x, _ = SPACE.from_unbounded(twin.chain[twin.burn :].reshape(-1, 2))
     assert 0.35 < np.mean(x[:, 0] > 0) < 0.65  # both modes, near their equal weights
 
