@@ -37,6 +37,18 @@ H₂ = ρ·H₁ (the same quantities in every coordinate set, so that they compa
                                            [--coordinates default default+lower-storey-top]
 
 Writes studies/output/sampling_coordinates[_TAG]/real.json.
+
+Against the long reference runs (``studies/reference_posteriors.py``): with
+``--reference-file`` each shot is prepared once, as ``invert_shot`` prepares it with its
+reference's seed, and that posterior is sampled to the default stopping rule in each
+coordinate set from the same generator state; the quantiles are compared with the
+reference's, in its posterior sd, as ``inversion_speed.py --data`` does.
+
+    python studies/sampling_coordinates.py --data ../shared/data/real --lvis-shots ID ...
+        --reference-file tests/data/reference_posteriors.json
+        [--coordinates default default+lower-storey-top]
+
+Writes studies/output/sampling_coordinates[_TAG]/references.json.
 """
 
 import harness
@@ -62,7 +74,7 @@ from inversion_speed import (  # noqa: E402  (studies/ is the script's folder)
 
 from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot  # noqa: E402
 from lidarinv.inference import InversionSettings, build_problem  # noqa: E402
-from lidarinv.inference.invert import prepare_problem  # noqa: E402
+from lidarinv.inference.invert import prepare_problem, sample_prepared  # noqa: E402
 from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS  # noqa: E402
 from lidarinv.inference.model import coordinates  # noqa: E402
 from lidarinv.inference.model.coordinates import DEFAULT_RIDGES  # noqa: E402
@@ -237,16 +249,53 @@ def storey_shape(draws) -> dict:
     return out
 
 
+def against_references(shots, labels, store, folder) -> list:
+    """Each shot prepared once, as ``invert_shot`` prepares it with its reference's seed,
+    then sampled to the default stopping rule in each coordinate set from the same
+    generator state, its quantiles compared with the reference's
+    (:func:`speed_real_shots.compare_with_reference`). The ``default`` set's run is the
+    one ``invert_shot`` gives."""
+    from speed_real_shots import _run_record, compare_with_reference
+
+    rows = []
+    for obs in shots:
+        reference = store[f"{obs.instrument}:{obs.shot_id}"]
+        rng = np.random.default_rng(reference["seed"])
+        cpu = time.process_time()
+        prepared = prepare_problem(obs, InversionSettings(), rng)
+        prepare_cpu, state = time.process_time() - cpu, rng.bit_generator.state
+        for label in labels:
+            posterior, start = in_coordinates(prepared, COORDINATES[label])
+            problem = replace(prepared.problem, log_posterior=posterior)
+            rng.bit_generator.state = state
+            cpu, wall = time.process_time(), time.perf_counter()
+            result = sample_prepared(replace(prepared, problem=problem, start=start), rng)
+            cpu, wall = time.process_time() - cpu + prepare_cpu, time.perf_counter() - wall
+            row = {"shot": str(obs.shot_id), "instrument": obs.instrument, "coordinates": label,
+                   "acceptance": float(np.mean(result.diagnostics["acceptance"]))}  # fmt: skip
+            row.update(_run_record(result, wall, cpu))
+            compare_with_reference(row, reference)
+            rows.append(row)
+            brief = {k: row[k] for k in ("shot", "coordinates", "cpu_seconds", "steps",
+                                         "converged", "max_error_sd", "acceptance")}  # fmt: skip
+            print(json.dumps(brief), flush=True)
+            harness.write_json(folder / "references.json", {"runs": rows})
+    return rows
+
+
 def main_real(args):
     """:func:`run_real_shot` of each real LVIS shot in each coordinate set."""
-    from speed_real_shots import real_observations
+    from speed_real_shots import read_store, real_observations
 
     shots = real_observations(args.data, "lvis", args.lvis_shots)
+    labels = [label for label in args.coordinates if label in COORDINATES]
+    if args.reference_file:
+        folder = harness.output_folder("sampling_coordinates", args.tag)
+        return against_references(shots, labels, read_store(args.reference_file), folder)
     base = InversionSettings(cohorts=args.cohorts)
     sampler = replace(base.sampler, max_steps=args.steps, stop_rule="tau", tau_multiple=1e9,
                       **sampler_changes(args))  # fmt: skip
     base = replace(base, sampler=sampler)
-    labels = [label for label in args.coordinates if label in COORDINATES]
     folder = harness.output_folder("sampling_coordinates", args.tag)
     rows = []
     for obs, seed in zip(shots, np.random.SeedSequence(args.seed).generate_state(len(shots))):
@@ -309,6 +358,11 @@ def main():
         action="store_true",
         help="real shots: prepare each shot once (in the first coordinates) and sample that "
         "posterior from the same physical start in each",
+    )
+    parser.add_argument(
+        "--reference-file",
+        help="real shots: sample each to the default stopping rule from its reference's "
+        "prepared posterior (a reference_posteriors.py store) and compare the quantiles",
     )
     add_sampler_options(parser)
     args = parser.parse_args()

@@ -1,6 +1,7 @@
 """The instrument of a shot: the preset named by its file, its bin and its own pulse."""
 
 import numpy as np
+from scipy.signal import fftconvolve
 
 from forward.constants import FWHM_PER_SIGMA, SPEED_OF_LIGHT_M_PER_NS
 from forward.instrument import INSTRUMENT_PRESETS, Instrument, instrument_preset
@@ -75,7 +76,8 @@ def ground_return_cdf(pulse, smoothing_m: float = 0.0):
     if smoothing_m > 0:
         offsets = np.arange(-pad, pad + step / 2, step)
         kernel = np.exp(-0.5 * (offsets / smoothing_m) ** 2)
-        density = np.convolve(density, kernel / kernel.sum(), mode="same")
+        # by FFT: the direct sum costs (grid × kernel) and ran ~1 ms a call
+        density = fftconvolve(density, kernel / kernel.sum(), mode="same")
     cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (density[1:] + density[:-1]))])
     cumulative /= cumulative[-1]
     centred = grid - grid[int(np.argmax(density))]

@@ -465,24 +465,31 @@ def _diagnostics_thin(kept, tau, s: SamplerSettings) -> int:
     return max(thin, kept // 500)
 
 
-def _diagnostics(sampler, discard, tau, s: SamplerSettings, monitor, quantile_errors=True):
+def _diagnostics(sampler, discard, tau, s: SamplerSettings, monitor, quantile_errors=True,
+                 bulk_only=False):  # fmt: skip
     """:func:`.stopping.quantity_diagnostics` of the monitored quantities after
     ``discard`` steps."""
     thin = _diagnostics_thin(sampler.iteration - discard, tau, s)
     chain = sampler.get_chain(discard=discard, thin=thin)
     blobs = sampler.get_blobs(discard=discard, thin=thin)
-    return quantity_diagnostics(monitor(chain, blobs), thin, quantile_errors)
+    return quantity_diagnostics(monitor(chain, blobs), thin, quantile_errors, bulk_only)
 
 
 def _check_ess_rhat(sampler, discard, tau, s: SamplerSettings, monitor):
     """The ``"ess-rhat"`` check: the monitored quantities' τ, whether they pass, what
-    fails, and their diagnostics (the quantile MCSE only where the rule asks for it: the
-    result's is computed once, after the run)."""
-    gated = s.quantile_mcse_max is not None
-    quantities = _diagnostics(sampler, discard, tau, s, monitor, quantile_errors=gated)
+    fails, and their diagnostics. The bulk ESS comes first: where it already fails the
+    rule (the usual check, before the chain is long enough) the tail ESS and R̂ are not
+    computed; the quantile MCSE only where the rule asks for it (the result's is computed
+    once, after the run)."""
+    rule, kept = _rule(s), sampler.iteration - discard
+    quantities = _diagnostics(sampler, discard, tau, s, monitor, bulk_only=True)
+    shortfalls = rule.bulk_shortfalls(quantities, kept)
+    if not shortfalls:
+        gated = s.quantile_mcse_max is not None
+        quantities = _diagnostics(sampler, discard, tau, s, monitor, quantile_errors=gated)
+        shortfalls = rule.shortfalls(quantities, kept)
     new_tau = np.array([d["tau"] for d in quantities.values()])
     new_tau = np.where(np.isnan(new_tau), np.inf, new_tau)
-    shortfalls = _rule(s).shortfalls(quantities, sampler.iteration - discard)
     return new_tau, not shortfalls, shortfalls, quantities
 
 

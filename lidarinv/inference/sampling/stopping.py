@@ -121,20 +121,49 @@ class StopRule:
                 continue
             if not np.isfinite(d["rhat"]) or d["rhat"] > self.rhat_max:
                 out.append(f"{name} R̂ {d['rhat']:.3f} > {self.rhat_max:g}")
-            for kind in ("bulk", "tail"):
-                ess = d[f"ess_{kind}"]
-                if not ess >= self.ess_min:
-                    out.append(f"{name} {kind} ESS {ess:.0f} < {self.ess_min:g}")
-            taus = kept_steps / d["tau"] if d["tau"] > 0 else np.nan
-            if not taus >= self.min_taus:
-                out.append(f"{name} chain {taus:.1f} τ < {self.min_taus:g} τ (τ {d['tau']:.0f})")
+            out.extend(self._bulk_shortfalls(name, d, kept_steps))
+            if not d["ess_tail"] >= self.ess_min:
+                out.append(f"{name} tail ESS {d['ess_tail']:.0f} < {self.ess_min:g}")
             mcse = d.get("quantile_mcse", np.nan)
             if self.quantile_mcse_max is not None and not mcse <= self.quantile_mcse_max:
                 out.append(f"{name} quantile MCSE {mcse:.3f} sd > {self.quantile_mcse_max:g} sd")
         return out
 
+    def bulk_shortfalls(self, diagnostics: dict, kept_steps: int) -> list:
+        """The tests of :meth:`shortfalls` that the bulk ESS alone decides (the chain's
+        length in τ and the bulk ESS): where any fails the run cannot stop, whatever the
+        tail ESS and R̂, so a check need not compute them.
 
-def quantity_diagnostics(draws: dict, thin: int = 1, quantile_errors: bool = True) -> dict:
+        Parameters
+        ----------
+        diagnostics : dict of name → dict
+            With ``ess_bulk`` and ``tau`` (:func:`quantity_diagnostics`, ``bulk_only``).
+        kept_steps : int
+
+        Returns
+        -------
+        list of str
+        """
+        return [
+            failed
+            for name, d in diagnostics.items()
+            if d["tau"] != 0
+            for failed in self._bulk_shortfalls(name, d, kept_steps)
+        ]
+
+    def _bulk_shortfalls(self, name, d, kept_steps) -> list:
+        out = []
+        if not d["ess_bulk"] >= self.ess_min:
+            out.append(f"{name} bulk ESS {d['ess_bulk']:.0f} < {self.ess_min:g}")
+        taus = kept_steps / d["tau"] if d["tau"] > 0 else np.nan
+        if not taus >= self.min_taus:
+            out.append(f"{name} chain {taus:.1f} τ < {self.min_taus:g} τ (τ {d['tau']:.0f})")
+        return out
+
+
+def quantity_diagnostics(
+    draws: dict, thin: int = 1, quantile_errors: bool = True, bulk_only: bool = False
+) -> dict:
     """Bulk and tail ESS, rank-normalised split R̂ and τ of each quantity.
 
     Parameters
@@ -145,6 +174,8 @@ def quantity_diagnostics(draws: dict, thin: int = 1, quantile_errors: bool = Tru
         The thinning of ``draws``: τ is given in steps of the unthinned chain.
     quantile_errors : bool
         Compute ``quantile_mcse`` (about half again the cost of the rest); NaN if not.
+    bulk_only : bool
+        Compute only ``ess_bulk`` and ``tau`` (a third of the cost); the rest NaN.
 
     Returns
     -------
@@ -181,11 +212,15 @@ def quantity_diagnostics(draws: dict, thin: int = 1, quantile_errors: bool = Tru
             out[name] = {**dict.fromkeys(DIAGNOSTICS, np.nan), "tau": 0.0}
         else:  # ArviZ's array path: the same functions as for a dataset, without xarray
             ess_bulk = float(az.ess(values, method="bulk"))
+            tau = values.size * thin / ess_bulk if ess_bulk > 0 else np.inf
+            if bulk_only:
+                out[name] = {**dict.fromkeys(DIAGNOSTICS, np.nan), "ess_bulk": ess_bulk, "tau": tau}
+                continue
             out[name] = {
                 "ess_bulk": ess_bulk,
                 "ess_tail": float(az.ess(values, method="tail")),
                 "rhat": float(az.rhat(sub_ensemble_chains(values), method="rank")),
-                "tau": values.size * thin / ess_bulk if ess_bulk > 0 else np.inf,
+                "tau": tau,
                 "quantile_mcse": quantile_mcse(values) if quantile_errors else np.nan,
             }
     return {name: out[name] for name in draws}

@@ -87,3 +87,18 @@ def test_the_lower_flank_fit_recovers_a_known_broadening_and_ground(width):
 def test_a_symmetric_pulse_peaks_where_it_is_registered():
     assert mode_offset(GaussianPulse(10.0), 1.5) == 0.0
     assert registered_ground(12.3, GaussianPulse(10.0), 0.5, 1.0) == 12.3
+
+
+@pytest.mark.parametrize("smoothing_m", [0.0, 0.4, 2.0])
+def test_a_gaussian_grounds_return_cdf_is_the_normal_cdf_of_the_widths_in_quadrature(
+    smoothing_m,
+):
+    from scipy.stats import norm
+
+    from lidarinv.observe.instrument import ground_return_cdf
+
+    pulse = GaussianPulse(15.0)
+    width = np.hypot(pulse.sigma_m, smoothing_m)
+    offsets = np.linspace(-4.0, 4.0, 81) * width
+    cdf = ground_return_cdf(pulse, smoothing_m)(offsets)
+    np.testing.assert_allclose(cdf, norm.cdf(offsets / width), atol=2e-3)
