@@ -411,7 +411,7 @@ def run_sampler(
     if s.stop_rule == "ess-rhat":
         # per coordinate, from ArviZ's bulk ESS as for the monitored quantities
         by_coordinate = coordinates_monitor(range(ndim))
-        coordinates = _diagnostics(sampler, burn, tau, s, by_coordinate, quantile_errors=False)
+        coordinates = _diagnostics(sampler, burn, tau, s, by_coordinate, bulk_only=True)
         coordinate_tau = np.array([coordinates[i]["tau"] for i in range(ndim)])
         if not converged or s.quantile_mcse_max is None:  # the result reports quantile MCSE
             quantities = _diagnostics(sampler, burn, tau, s, monitor)

@@ -247,3 +247,24 @@ def test_a_quantity_that_does_not_vary_does_not_hold_the_run():
     assert StopRule().shortfalls(constant, kept_steps=200) == []
     broken = quantity_diagnostics({"q": np.full((200, 16), np.nan)})
     assert StopRule().shortfalls(broken, kept_steps=200)
+
+
+def test_a_check_that_stops_on_the_bulk_ess_decides_as_the_whole_rule_does():
+    # AR(1) chains 2–60 τ long: the short ones fail on the bulk ESS or the length in τ,
+    # which the bulk ESS alone decides; the rule's verdict is the same either way
+    rng = np.random.default_rng(5)
+    rule = StopRule()
+    verdicts = []
+    for steps in (40, 200, 600, 1500):
+        draws = {"a": _ar1_walkers(rng, steps, 32, 10.0), "b": _ar1_walkers(rng, steps, 32, 25.0)}
+        bulk = quantity_diagnostics(draws, bulk_only=True)
+        full = quantity_diagnostics(draws)
+        for name in draws:
+            assert bulk[name]["ess_bulk"] == full[name]["ess_bulk"]
+            assert bulk[name]["tau"] == full[name]["tau"]
+            assert np.isnan(bulk[name]["rhat"]) and np.isnan(bulk[name]["ess_tail"])
+        lazy = rule.bulk_shortfalls(bulk, steps) or rule.shortfalls(full, steps)
+        assert bool(lazy) == bool(rule.shortfalls(full, steps))
+        assert set(rule.bulk_shortfalls(bulk, steps)) <= set(rule.shortfalls(full, steps))
+        verdicts.append(not lazy)
+    assert verdicts[0] is False and verdicts[-1] is True  # both outcomes were exercised
