@@ -32,6 +32,7 @@ SOURCES = {
     "expected-model-accuracy": "stand_model_runtime_vs_error/summary.json",
     "inversion-speed": "inversion_speed{tag}/summary.json",
     "inversion-speed-real": "inversion_speed{tag}/summary.json",
+    "sampling-coordinates-real": "sampling_coordinates{tag}/references.json",
     "calibration": "recovery{tag}/summary.json",
     "calibration-out-of-family": "recovery{tag}/summary.json",
     "recovery": "recovery{tag}/summary.json",

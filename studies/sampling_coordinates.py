@@ -48,7 +48,8 @@ reference's, in its posterior sd, as ``inversion_speed.py --data`` does.
         --reference-file tests/data/reference_posteriors.json
         [--coordinates default default+lower-storey-top]
 
-Writes studies/output/sampling_coordinates[_TAG]/references.json.
+Writes studies/output/sampling_coordinates[_TAG]/references.json; ``--combine TAG ...``
+joins such runs into one (with the references they were compared with).
 """
 
 import harness
@@ -98,6 +99,10 @@ COORDINATES = {
     "cover-pai/probit": {"ridges": ("cover-pai",), "unbounded": "probit"},
     "default": {"ridges": DEFAULT_RIDGES},
     "default+lower-storey-top": {"ridges": (*DEFAULT_RIDGES, "lower-storey-top")},
+    "default+mean-height": {"ridges": (*DEFAULT_RIDGES, "mean-height")},
+    "default+mean-height+lower-storey-top": {
+        "ridges": (*DEFAULT_RIDGES, "mean-height", "lower-storey-top")
+    },
     # p = 1: the crown base's logistic form (LOWER_POWER is not a setting: the study's own)
     "default+lower-storey-top/p=1": {
         "ridges": (*DEFAULT_RIDGES, "lower-storey-top"),
@@ -283,6 +288,23 @@ def against_references(shots, labels, store, folder) -> list:
     return rows
 
 
+def combine_reference_runs(tags, folder) -> dict:
+    """Join the ``references.json`` of runs tagged ``tags`` (a shot and coordinate set
+    once, the last tag's run kept), with the reference runs they were compared with."""
+    from reference_posteriors import STORE
+    from speed_real_shots import held_references, read_store
+
+    runs = {}
+    for tag in tags:
+        path = harness.output_folder("sampling_coordinates", tag) / "references.json"
+        for row in json.loads(path.read_text())["runs"]:
+            runs[(row["shot"], row["coordinates"])] = row
+    rows = sorted(runs.values(), key=lambda r: (r["shot"], r["coordinates"]))
+    summary = {"runs": rows, "references": held_references(read_store(STORE), rows)}
+    harness.write_json(folder / "references.json", summary)
+    return summary
+
+
 def main_real(args):
     """:func:`run_real_shot` of each real LVIS shot in each coordinate set."""
     from speed_real_shots import read_store, real_observations
@@ -364,8 +386,19 @@ def main():
         help="real shots: sample each to the default stopping rule from its reference's "
         "prepared posterior (a reference_posteriors.py store) and compare the quantiles",
     )
+    parser.add_argument(
+        "--combine",
+        nargs="+",
+        metavar="TAG",
+        help="join the references.json of --reference-file runs with these tags (into --tag)",
+    )
     add_sampler_options(parser)
     args = parser.parse_args()
+    if args.combine:
+        combine_reference_runs(
+            args.combine, harness.output_folder("sampling_coordinates", args.tag)
+        )
+        return
     if args.data:
         args.coordinates = args.coordinates or list(REAL_COORDINATES)
         main_real(args)

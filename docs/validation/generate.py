@@ -22,7 +22,7 @@ from .render import (
     render_real_products,
     render_speed,
 )
-from .render_reference import render_time_vs_error
+from .render_reference import render_coordinates_vs_reference, render_time_vs_error
 
 #: Page → (title, intro, sections); a section is (key, heading, renderer, how to run it).
 PAGES = {
@@ -63,6 +63,15 @@ PAGES = {
                 "--lvis-shots ID ... --steps 25000 --restarts 4; python "
                 "studies/inversion_speed.py --data DATA --gedi-shots ID ... --lvis-shots ID ... "
                 "--min-taus 10 20 --tag _real",
+            ),
+            (
+                "sampling-coordinates-real",
+                "Sampling coordinates on the same real posteriors, against the long reference runs",
+                render_coordinates_vs_reference,
+                "python studies/sampling_coordinates.py --data DATA --lvis-shots ID ... "
+                "--reference-file tests/data/reference_posteriors.json --coordinates LABEL "
+                "... --tag _TAG; python studies/sampling_coordinates.py --combine _TAG ... "
+                "--tag _real",
             ),
             (
                 "batch-throughput",

@@ -19,10 +19,6 @@ is ln(B − B₀) wherever B stays clear of its upper end (ln B for the default 
 spans ℝ, so that no move leaves the prior (a plain b = ln B had a wall at B = B₁ which a
 quarter of the proposals hit on short stands); |∂ℓ/∂b| = (ℓ₁ − ℓ₀)·t·(1 − t).
 
-**Height sd** against the top height. The normal height family needs a positive mean
-height, sd < top/TOP_SDS; sd's unbounded map is rescaled at each top to end there
-(:func:`height_sd_capped`), so that no move leaves that support either.
-
 **Ground elevation** against the understory. The ground and a low understory (LAI Lu,
 height hu) return one blob, a pulse width wide, whose centroid the waveform fixes to about
 a centimetre while the ground elevation zg alone spreads several times wider: more or
@@ -38,12 +34,8 @@ zg = c − f at fixed (Lu, hu, r) has |∂zg/∂c| = 1. The centroid's unbounded
 ground prior's range widened upwards by the largest f (f ≤ hu), so that every ground
 elevation in the prior stays reachable.
 
-**Top height** against the footprint's tallest stem H (the latent of a footprint
-conditioned on it, :class:`.stand.StandMapping`). The waveform sees H, and the
-stand's top lies above it by a gap whose law, near the top, is close to exponential with
-its mode at zero. In (top, H) the posterior is a wedge, top ≥ H, densest along its edge.
-Sampling g = ln(top − H) instead of top opens the wedge into a smooth, one-humped density
-along g at fixed H; top = H + e^g has |∂top/∂g| = e^g.
+The top height's own coordinates (against the height sd and the footprint's tallest
+stem) are in :mod:`.top_coordinates`.
 
 **The lower storey's top ratio ρ** against the upper storey's top H₁ (a two-storey stand,
 :mod:`.two_cohort`). The waveform places the lower storey's return, so it fixes that
@@ -84,6 +76,7 @@ RIDGE_COORDINATES = (
     "ground-centroid",
     "tallest-stem",
     "lower-storey-top",
+    "mean-height",
 )
 
 #: Those used by default (``studies/sampling_coordinates.py`` measures τ per choice). The
@@ -148,56 +141,6 @@ def ratio_from_crown_base(b, mean_height, bounds=(0.0, 1.0)):
         return ratio, log_jac
 
 
-def _sd_map_scale(top, w_lower, w_upper, log_scale, top_sds):
-    """k of :func:`height_sd_capped`; NaN where the top admits no sd of the prior."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cap = np.asarray(top, float) / top_sds
-        w_cap = np.log(cap) if log_scale else cap
-        k = (np.minimum(w_upper, w_cap) - w_lower) / (w_upper - w_lower)
-    return np.where(k > 0, k, np.nan)
-
-
-def height_sd_capped(sd, top, w_lower, w_upper, log_scale, top_sds):
-    """Rescale the height sd's unbounded map to end at the largest sd a top admits.
-
-    Parameters
-    ----------
-    sd : array (m)
-        sd from its prior's map, within the prior's support.
-    top : array (m)
-        Top height.
-    w_lower, w_upper : float
-        The prior's support in its map's scale w (sd, or ln sd for a log-scale prior).
-    log_scale : bool
-    top_sds : float
-        The mean height top − ``top_sds``·sd must stay positive.
-
-    Returns
-    -------
-    sd, log_jac : arrays
-        w' = w₀ + (w − w₀)·k, k = (min(w₁, w(top/top_sds)) − w₀)/(w₁ − w₀), and the
-        log-Jacobian to add to the prior map's: ln k, plus w' − w on a log scale;
-        NaN where the top admits no sd of the prior (k ≤ 0).
-    """
-    sd = np.asarray(sd, float)
-    k = _sd_map_scale(top, w_lower, w_upper, log_scale, top_sds)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        w = np.log(sd) if log_scale else sd
-        w_new = w_lower + (w - w_lower) * k
-        log_jac = np.log(k) + (w_new - w if log_scale else 0.0)
-        return (np.exp(w_new) if log_scale else w_new), log_jac
-
-
-def height_sd_uncapped(sd, top, w_lower, w_upper, log_scale, top_sds):
-    """The inverse of :func:`height_sd_capped`: sd in the prior's own map."""
-    sd = np.asarray(sd, float)
-    k = _sd_map_scale(top, w_lower, w_upper, log_scale, top_sds)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        w = np.log(sd) if log_scale else sd
-        w_old = w_lower + (w - w_lower) / k
-        return np.exp(w_old) if log_scale else w_old
-
-
 def understory_centroid(lai, height, rho_ratio, slope=INTERCEPTION_SLOPE):
     """Height above the ground of the centroid of the ground-plus-understory return.
 
@@ -225,41 +168,6 @@ def understory_centroid(lai, height, rho_ratio, slope=INTERCEPTION_SLOPE):
         moment = np.where(q > 0, 1.0 - intercepted / q, 0.0)
         centroid = height * rho_ratio * moment / (rho_ratio * intercepted + np.exp(-q))
     return np.where(q > 0, centroid, 0.0)
-
-
-def top_from_stem_gap(tallest, log_gap):
-    """Top height from the tallest stem and the log gap above it.
-
-    Parameters
-    ----------
-    tallest : array (m)
-        H.
-    log_gap : array
-        g.
-
-    Returns
-    -------
-    top, log_jac : arrays
-        top = H + e^g (m) and log|∂top/∂g| = g.
-    """
-    return tallest + np.exp(log_gap), np.asarray(log_gap, float)
-
-
-def stem_gap_from_top(top, tallest):
-    """The log gap above the tallest stem: the inverse of :func:`top_from_stem_gap`.
-
-    Parameters
-    ----------
-    top, tallest : arrays (m)
-
-    Returns
-    -------
-    array
-        g = ln(top − H); NaN where top ≤ H.
-    """
-    gap = np.asarray(top, float) - tallest
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(gap > 0, np.log(gap), np.nan)
 
 
 def lower_top_from_ratio(ratio, top, bounds, power=LOWER_TOP_WALL_POWER):

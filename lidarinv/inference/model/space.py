@@ -13,7 +13,7 @@ import numpy as np
 
 from forward.backends import resolve
 
-from . import coordinates
+from . import coordinates, top_coordinates
 from .prior_table import DEFAULT_UNBOUNDED, PriorTable
 from .stand import TOP_SDS
 from .tallest_stem import NO_STEM_DEPTH_M, TALLEST_STEM
@@ -78,6 +78,9 @@ class ParameterSpace:
         - ``ground-centroid``: the centroid of the ground-plus-understory return instead
           of ``ground_elevation``, when that is free and the understory is in the space
           with a non-zero LAI (free or fixed).
+        - ``mean-height``: the mean tree height instead of ``top_height``, when both it and
+          ``height_sd`` are free, the top's prior is bounded above, and the tallest stem's
+          gap does not already take the top.
         - ``tallest-stem``: the log gap between the top height and the tallest stem
           instead of ``top_height``, when both are free.
         - ``lower-storey-top``: the lower storey's log top height above its prior's floor
@@ -144,7 +147,6 @@ class ParameterSpace:
             else None
         )
         self._storey = self._storey_map() if "lower-storey-top" in self.ridges else None
-        self._sd_cap = self._sd_cap_map()
         self._centroid = self._centroid_map() if "ground-centroid" in self.ridges else None
         stem = ("top_height", TALLEST_STEM)
         self._stem = (
@@ -152,6 +154,8 @@ class ParameterSpace:
             if "tallest-stem" in self.ridges and set(stem) <= set(self.names)
             else None
         )
+        self._mean_height = self._mean_height_map() if "mean-height" in self.ridges else None
+        self._sd_cap = self._sd_cap_map()
         inputs = ("top_height", "height_sd", "understory_lai", "understory_height", "rho_ratio")
         self._ridge_inputs = (  # for the compiled maps: each a column, or FIXED and a value
             np.array([self._index(n) for n in inputs], np.int64),
@@ -180,6 +184,8 @@ class ParameterSpace:
             joint += ", ground-centroid-v1"
         if self._stem is not None:
             joint += ", tallest-stem-gap-v1"
+        if self._mean_height is not None:
+            joint += f", mean-height-v1(p={coordinates.LOWER_TOP_WALL_POWER:g})"
         if self._storey is not None:
             joint += f", lower-storey-top-v1(p={self._storey[3]:g})"
         priors = ";".join(f"{p.name}:{p.prior.describe()}" for p in self.free)
@@ -261,13 +267,18 @@ class ParameterSpace:
         x, log_jac = self._priors.from_unbounded(u)
         if self._stem is not None:  # before the crown base, which needs the top
             top, stem = self._stem
-            x[:, top], log_jac[:, top] = coordinates.top_from_stem_gap(x[:, stem], u[:, top])
+            x[:, top], log_jac[:, top] = top_coordinates.top_from_stem_gap(x[:, stem], u[:, top])
         if self._sd_cap is not None:  # after the top, before the crown base
             sd, *form = self._sd_cap
-            x[:, sd], extra = coordinates.height_sd_capped(
-                x[:, sd], self._column(x, "top_height"), *form, TOP_SDS
+            x[:, sd], extra = top_coordinates.height_sd_capped(
+                x[:, sd], self._sd_cap_top(x), *form, TOP_SDS
             )
             log_jac[:, sd] += extra
+        if self._mean_height is not None:  # after the sd it needs
+            top, sd, top_upper = self._mean_height
+            x[:, top], log_jac[:, top] = top_coordinates.top_from_mean_height(
+                u[:, top], x[:, sd], top_upper, TOP_SDS
+            )
         coordinates.ridges_from_unbounded(
             u, x, log_jac, self._joint, self._base, self._centroid, self._ridge_inputs,
             TOP_SDS, self.interception_slope, storey=self._storey,
@@ -295,10 +306,15 @@ class ParameterSpace:
             mapped[:, g] = lower + (centroid - lower) / stretch
         if self._sd_cap is not None:
             sd, *form = self._sd_cap
-            mapped[:, sd] = coordinates.height_sd_uncapped(
-                x[:, sd], self._column(x, "top_height"), *form, TOP_SDS
+            mapped[:, sd] = top_coordinates.height_sd_uncapped(
+                x[:, sd], self._sd_cap_top(x), *form, TOP_SDS
             )
         u = self._priors.to_unbounded(mapped)
+        if self._mean_height is not None:
+            top, sd, top_upper = self._mean_height
+            u[:, top] = top_coordinates.mean_height_from_top(
+                x[:, top], x[:, sd], top_upper, TOP_SDS
+            )
         if self._joint is not None:
             c, a, cover_bounds, pai_bounds = self._joint
             u[:, c], u[:, a] = coordinates.from_cover_pai_bounded(
@@ -313,7 +329,7 @@ class ParameterSpace:
             u[:, k] = coordinates.lower_top_from_ratio(x[:, k], top, bounds, power)
         if self._stem is not None:
             top, stem = self._stem
-            u[:, top] = coordinates.stem_gap_from_top(x[:, top], x[:, stem])
+            u[:, top] = top_coordinates.stem_gap_from_top(x[:, top], x[:, stem])
         return u
 
     def _index(self, name) -> int:
@@ -340,11 +356,27 @@ class ParameterSpace:
 
     def _sd_cap_map(self):
         """(column, w₀, w₁, log scale) of the height sd's capped map
-        (:func:`.coordinates.height_sd_capped`), or None where sd is not free."""
+        (:func:`.top_coordinates.height_sd_capped`), or None where sd is not free."""
         if "height_sd" not in self.names or "top_height" not in self.by_name:
             return None
         form = self.by_name["height_sd"].prior.form()
         return self.names.index("height_sd"), form.w_lower, form.w_upper, form.log_scale
+
+    def _sd_cap_top(self, x):
+        """The top whose mean height caps the sd's map (:meth:`_sd_cap_map`): each row's,
+        or under the mean-height coordinate (where the top follows from the sd) the upper
+        end of the top's prior."""
+        return self._column(x, "top_height") if self._mean_height is None else self._mean_height[2]
+
+    def _mean_height_map(self):
+        """(top column, sd column, top₁) of the mean-height coordinate
+        (:func:`.top_coordinates.top_from_mean_height`), or None where it does not apply."""
+        if not {"top_height", "height_sd"} <= set(self.names) or self._stem is not None:
+            return None
+        top_upper = float(self.by_name["top_height"].prior.form().upper)
+        if not np.isfinite(top_upper):
+            return None
+        return self.names.index("top_height"), self.names.index("height_sd"), top_upper
 
     def _storey_map(self):
         """(column, ρ₀, ρ₁, p) of the lower storey's top coordinate

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from jacobian_check import assert_exact_jacobian
 
-from lidarinv.inference.model import coordinates
+from lidarinv.inference.model import coordinates, top_coordinates
 from lidarinv.inference.model.parameters import default_space
 from lidarinv.inference.model.priors import LogUniform, Uniform
 
@@ -67,18 +67,20 @@ def test_height_sd_cap_keeps_every_mean_height_positive_with_exact_jacobian(log_
     w_lower, w_upper = (np.log(lower), np.log(upper)) if log_scale else (lower, upper)
     top = rng.uniform(1.0, 40.0, 400)
     sd = np.exp(rng.uniform(w_lower, w_upper, 400)) if log_scale else rng.uniform(lower, upper, 400)
-    capped, log_jac = coordinates.height_sd_capped(sd, top, w_lower, w_upper, log_scale, 2.0)
+    capped, log_jac = top_coordinates.height_sd_capped(sd, top, w_lower, w_upper, log_scale, 2.0)
     assert np.all(top - 2.0 * capped > 0) and np.all(capped >= lower)
-    back = coordinates.height_sd_uncapped(capped, top, w_lower, w_upper, log_scale, 2.0)
+    back = top_coordinates.height_sd_uncapped(capped, top, w_lower, w_upper, log_scale, 2.0)
     np.testing.assert_allclose(back, sd, rtol=1e-12)
     h = 1e-7 * sd
     slope = (
-        coordinates.height_sd_capped(sd + h, top, w_lower, w_upper, log_scale, 2.0)[0]
-        - coordinates.height_sd_capped(sd - h, top, w_lower, w_upper, log_scale, 2.0)[0]
+        top_coordinates.height_sd_capped(sd + h, top, w_lower, w_upper, log_scale, 2.0)[0]
+        - top_coordinates.height_sd_capped(sd - h, top, w_lower, w_upper, log_scale, 2.0)[0]
     ) / (2 * h)
     np.testing.assert_allclose(log_jac, np.log(slope), atol=1e-6)
     # a top below twice the prior's smallest sd admits none
-    assert np.isnan(coordinates.height_sd_capped(0.5, 0.15, w_lower, w_upper, log_scale, 2.0)[0])
+    assert np.isnan(
+        top_coordinates.height_sd_capped(0.5, 0.15, w_lower, w_upper, log_scale, 2.0)[0]
+    )
 
 
 BOTH = ("cover-pai", "crown-base")
