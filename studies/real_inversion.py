@@ -15,7 +15,12 @@ residuals), and the summary names each line's worst shots and copies their figur
 (``worst_<lfid>_<rank>.png``). ``shots.json`` is
 rewritten after every shot, so a run stopped early keeps what it finished;
 ``--skip-shots`` and ``--max-shots`` split a file's shots into runs that ``--combine``
-joins.
+joins. At default settings, a shot that has a long reference run
+(``studies/reference_posteriors.py``, ``tests/data/reference_posteriors.json``) is
+inverted with the reference's seed, so that both sample one posterior; its record and
+the summary's ``reference_agreement`` give the CPU time against the largest distance of
+its 5/50/95 % quantiles from the reference's, in posterior sd, and ``time_vs_error.png``
+plots them.
 
     python studies/real_inversion.py [--data ../shared/data/real | examples]
                                      [--instrument gedi lvis] [--skip-shots N]
@@ -31,6 +36,9 @@ from pathlib import Path
 
 import harness
 import numpy as np
+from real_inversion_figures import predictive_figures, rh98_figure, shot_figure
+from reference_posteriors import STORE as REFERENCE_STORE
+from speed_real_shots import plot_time_vs_error, read_store, reference_agreement
 
 from lidarinv.inference.passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
 from lidarinv.io import iter_observations, read_gedi_l2a, read_gedi_l2b, read_lvis_l2
@@ -88,9 +96,11 @@ def products(files) -> dict:
 
 
 def invert_one(job):
-    """One shot: its posterior summary against the product, or why it failed."""
+    """One shot: its posterior summary against the product, or why it failed, and against
+    its long reference run where the job carries one."""
     obs, product, max_steps, seed, priors, cohorts = job[:6]
     figures = job[6] if len(job) > 6 else None
+    reference = job[7] if len(job) > 7 else None
     from dataclasses import replace
 
     from lidarinv.inference import InversionSettings, invert_shot
@@ -137,6 +147,8 @@ def invert_one(job):
             record[name] = result.diagnostics[name]
     if "ground_modes" in result.diagnostics:  # the evidence for each of two grounds
         record["ground_modes"] = result.diagnostics["ground_modes"]
+    if reference is not None:
+        record["reference"] = reference_agreement(result, reference)
     canopy = result.footprint_canopy()
     if canopy is not None:
         record["no_tree_probability"] = canopy["no_tree_probability"]
@@ -152,33 +164,6 @@ def invert_one(job):
     if figures is not None and record.get("lfid") is not None:
         shot_figure(result, record, figures / f"shot_{obs.shot_id}.png")
     return record, result
-
-
-def shot_figure(result, record, path) -> None:
-    """The fit and its residuals (:func:`lidarinv.inference.results.plots.predictive_plot`)
-    with the analysis's ground candidates, the posterior's ground and the product's."""
-    from lidarinv.inference.results.plots import predictive_plot
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig = predictive_plot(result, None)
-    analysis = record["analysis"]
-    lines = (
-        (analysis["ground"], "analysis ground", "tab:green", "-"),
-        (analysis.get("ground_alternative", np.nan), "alternative ground", "tab:olive", ":"),
-        (record["posterior"]["ground"][1], "posterior ground (median)", "tab:purple", "--"),
-        (record["product"]["ground"], "product ground", "k", "-."),
-    )
-    for ax in fig.axes:
-        for height, label, colour, style in lines:
-            if height is not None and np.isfinite(height):
-                ax.axhline(height, color=colour, ls=style, lw=0.9, label=label)
-    fig.axes[0].legend(fontsize=6, loc="upper right")
-    fig.suptitle(f"shot {result.shot_id} (line {record.get('lfid')}): fit, residuals, grounds",
-                 fontsize=10)  # fmt: skip
-    fig.savefig(path, dpi=80)
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
 
 
 def convention_offset(obs, analysis) -> float:
@@ -245,6 +230,18 @@ def statistics(records, instrument) -> dict:
         "median_instrument_floor": _percentile_of(done, "instrument_floor", 50),
         "median_residual_scale": _percentile_of(done, "residual_scale", 50),
         "p90_residual_scale": _percentile_of(done, "residual_scale", 90),
+        # CPU time against the quantiles' largest error from the shot's long reference run
+        "reference_agreement": [
+            {
+                "shot": str(r["shot"]),
+                "cpu_seconds": r["cpu_seconds"],
+                "steps": r["steps"],
+                "converged": r["converged"],
+                **r["reference"],
+            }
+            for r in done
+            if "reference" in r
+        ],
     }
     for q, (name, key) in QUANTITIES.items():
         triples = [
@@ -323,45 +320,6 @@ def flight_lines(records, out=None) -> dict:
     return lines
 
 
-def rh98_figure(records, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
-    for ax, instrument in zip(axes, ("gedi", "lvis")):
-        done = [r for r in records if r["instrument"] == instrument and "posterior" in r]
-        done = [r for r in done if np.isfinite(r["product"]["rh98"])]
-        if not done:
-            ax.set_axis_off()
-            continue
-        x = np.array([r["product"]["rh98"] for r in done])
-        colour = ["tab:blue" if r["converged"] else "tab:red" for r in done]
-        series = (("rh98", "o", "model waveform"), ("rh98_footprint", "s", "footprint"))
-        spans = [x]
-        for name, marker, label in series:
-            p = np.array([r["posterior"].get(name, [np.nan] * 3) for r in done])
-            if not np.any(np.isfinite(p)):
-                continue
-            ax.errorbar(x, p[:, 1], yerr=[p[:, 1] - p[:, 0], p[:, 2] - p[:, 1]], fmt="none",
-                        ecolor="0.6", lw=0.8)  # fmt: skip
-            ax.scatter(x, p[:, 1], c=colour, s=14, marker=marker, zorder=3, label=label)
-            spans.append(p[np.isfinite(p)])
-        values = np.concatenate(spans)
-        lim = [values.min() - 1, values.max() + 1]
-        ax.plot(lim, lim, "k-", lw=0.6)
-        legend = ax.legend(fontsize=8, title="RH98 of the", title_fontsize=8)
-        for handle in getattr(legend, "legend_handles", []):  # shapes, not convergence
-            handle.set_color("0.4")
-        ax.set_xlabel(f"{instrument.upper()} product RH98 (m)")
-        ax.set_ylabel("posterior RH98: median and 90 % interval (m)")
-        ax.set_title(f"{instrument.upper()}: red = not converged", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-
-
 def main(argv=None):
     parser = harness.parser(__doc__, seed=1, workers=1)
     parser.add_argument("--data", default=str(HERE.parent.parent / "shared" / "data" / "real"))
@@ -385,23 +343,19 @@ def main(argv=None):
     wanted = products(files)
     out = harness.output_folder("real_inversion", args.tag)
     jobs = []
+    # shots with a long reference run are inverted with its seed, at default settings only
+    default = args.priors is None and args.max_steps is None and args.cohorts is None
+    references = read_store(REFERENCE_STORE) if default else {}
     for instrument in args.instrument:
         shots = [o for o in iter_observations(files[f"{instrument}-l1b"])
                  if isinstance(o, Observation) and (instrument, o.shot_id) in wanted]  # fmt: skip
         seeds = np.random.SeedSequence(args.seed).spawn(len(shots))
         end = args.skip_shots + args.max_shots if args.max_shots else len(shots)
-        jobs += [
-            (
-                o,
-                wanted[(instrument, o.shot_id)],
-                args.max_steps,
-                s,
-                args.priors,
-                args.cohorts,
-                out / "shots",
-            )
-            for o, s in list(zip(shots, seeds))[args.skip_shots : end]
-        ]
+        for o, s in list(zip(shots, seeds))[args.skip_shots : end]:
+            reference = references.get(f"{instrument}:{o.shot_id}")
+            seed = s if reference is None else reference["seed"]  # the same posterior
+            jobs.append((o, wanted[(instrument, o.shot_id)], args.max_steps, seed, args.priors,
+                         args.cohorts, out / "shots", reference))  # fmt: skip
     print(f"{len(jobs)} shots to invert")
     records, results = [], {}
     with ProcessPoolExecutor(args.workers) as pool:
@@ -421,7 +375,7 @@ def main(argv=None):
         "lvis_flight_lines": flight_lines(records, out),
     }
     _write(out, summary, records)
-    _predictive_figures(records, results, out)
+    predictive_figures(records, results, out)
     print(json.dumps(summary, indent=1, default=float))
     print(f"wrote {out}")
 
@@ -461,10 +415,16 @@ def combine(tags, out) -> None:
 
 
 def _write(out, summary, records) -> None:
-    """The run's summary, its shots and the figure of RH98 against the product."""
+    """The run's summary, its shots, the figure of RH98 against the product and, where
+    shots have reference runs, of CPU time against the error from them."""
     harness.write_json(out / "summary.json", summary)
     _write_shots(out, records)
     rh98_figure(records, out / "rh98.png")
+    agreed = [{"variant": "default settings", "instrument": r["instrument"],
+               "cpu_seconds": r["cpu_seconds"], **r["reference"]}
+              for r in records if "reference" in r]  # fmt: skip
+    if agreed:
+        plot_time_vs_error(agreed, ["default settings"], out / "time_vs_error.png")
 
 
 def _write_shots(out, records) -> None:
@@ -500,23 +460,6 @@ def _json(value):
     if isinstance(value, np.ndarray):
         return value.tolist()
     raise TypeError(type(value).__name__)
-
-
-def _predictive_figures(records, results, out):
-    """The typical and worst shot of each instrument and its most multi-layered one."""
-    from lidarinv.inference.results.plots import predictive_plot
-
-    for instrument in ("gedi", "lvis"):
-        done = [r for r in records if r["instrument"] == instrument and "posterior" in r]
-        if not done:
-            continue
-        error = [abs(r["posterior"]["ground"][1] - r["product"]["ground"]) for r in done]
-        order = np.argsort(error)
-        chosen = {"typical": done[order[len(order) // 2]], "worst": done[order[-1]],
-                  "layers": max(done, key=lambda r: r["analysis"]["n_modes"])}  # fmt: skip
-        for label, record in chosen.items():
-            result = results[(instrument, record["shot"])]
-            predictive_plot(result, out / f"predictive_{instrument}_{label}.png")
 
 
 if __name__ == "__main__":

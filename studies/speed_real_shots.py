@@ -174,6 +174,17 @@ def compare_with_reference(row: dict, reference: dict) -> None:
     row["max_error_sd"] = largest_error(row["error_sd"])
 
 
+def reference_agreement(result, reference: dict) -> dict:
+    """A result's quantile errors against its shot's reference run
+    (:func:`compare_with_reference`): ``same_posterior_as_reference``, ``error_sd``,
+    ``max_error_sd`` and the reference's own ``reference_error_sd``."""
+    row = {"instrument_floor": result.diagnostics.get("instrument_floor"),
+           "cohorts": result.settings.get("cohorts"), "reported": reported_quantiles(result)}  # fmt: skip
+    compare_with_reference(row, reference)
+    del row["instrument_floor"], row["cohorts"], row["reported"]
+    return row
+
+
 def largest_error(errors: dict) -> float:
     """The largest of :func:`agreement`'s quantile errors (NaN for none)."""
     values = [e for quantiles in errors.values() for e in quantiles]

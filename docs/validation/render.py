@@ -314,7 +314,21 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
         differences = {q: d for q, d in part.items() if isinstance(d, dict) and "median_abs" in d}
         coverage = {"inside": "inside_90", "widened": "inside_90_widened"}
         text += difference_table("posterior", differences, coverage) + "\n"
+        text += _reference_agreement(part.get("reference_agreement"), instrument)
     return text + provenance(record)
+
+
+def _reference_agreement(rows, instrument) -> str:
+    """The shots with a long reference run: CPU time against the largest quantile error."""
+    if not rows:
+        return ""
+    header = ["shot", "CPU (s)", "steps", "stopped on the rule", "same posterior",
+              "largest quantile error (sd)", "reference's own error (sd)"]  # fmt: skip
+    body = [[r["shot"], r["cpu_seconds"], r["steps"], r["converged"],
+             r.get("same_posterior_as_reference"), r.get("max_error_sd"),
+             r.get("reference_error_sd")] for r in rows]  # fmt: skip
+    title = f"{instrument.upper()} shots with a long reference run (inverted with its seed)"
+    return table(header, body, title) + "\n"
 
 
 def render_forward_accuracy(record, figures: Path, key: str) -> str:
