@@ -185,7 +185,7 @@ class ParameterSpace:
         if self._stem is not None:
             joint += ", tallest-stem-gap-v1"
         if self._mean_height is not None:
-            joint += f", mean-height-v1(p={coordinates.LOWER_TOP_WALL_POWER:g})"
+            joint += f", mean-height-v1(p={self._mean_height[3]:g})"
         if self._storey is not None:
             joint += f", lower-storey-top-v1(p={self._storey[3]:g})"
         priors = ";".join(f"{p.name}:{p.prior.describe()}" for p in self.free)
@@ -275,9 +275,9 @@ class ParameterSpace:
             )
             log_jac[:, sd] += extra
         if self._mean_height is not None:  # after the sd it needs
-            top, sd, top_upper = self._mean_height
+            top, sd, top_upper, power = self._mean_height
             x[:, top], log_jac[:, top] = top_coordinates.top_from_mean_height(
-                u[:, top], x[:, sd], top_upper, TOP_SDS
+                u[:, top], x[:, sd], top_upper, TOP_SDS, power
             )
         coordinates.ridges_from_unbounded(
             u, x, log_jac, self._joint, self._base, self._centroid, self._ridge_inputs,
@@ -311,9 +311,9 @@ class ParameterSpace:
             )
         u = self._priors.to_unbounded(mapped)
         if self._mean_height is not None:
-            top, sd, top_upper = self._mean_height
+            top, sd, top_upper, power = self._mean_height
             u[:, top] = top_coordinates.mean_height_from_top(
-                x[:, top], x[:, sd], top_upper, TOP_SDS
+                x[:, top], x[:, sd], top_upper, TOP_SDS, power
             )
         if self._joint is not None:
             c, a, cover_bounds, pai_bounds = self._joint
@@ -369,14 +369,15 @@ class ParameterSpace:
         return self._column(x, "top_height") if self._mean_height is None else self._mean_height[2]
 
     def _mean_height_map(self):
-        """(top column, sd column, top₁) of the mean-height coordinate
+        """(top column, sd column, top₁, p) of the mean-height coordinate
         (:func:`.top_coordinates.top_from_mean_height`), or None where it does not apply."""
         if not {"top_height", "height_sd"} <= set(self.names) or self._stem is not None:
             return None
         top_upper = float(self.by_name["top_height"].prior.form().upper)
         if not np.isfinite(top_upper):
             return None
-        return self.names.index("top_height"), self.names.index("height_sd"), top_upper
+        top, sd = self.names.index("top_height"), self.names.index("height_sd")
+        return top, sd, top_upper, coordinates.LOWER_TOP_WALL_POWER
 
     def _storey_map(self):
         """(column, ρ₀, ρ₁, p) of the lower storey's top coordinate

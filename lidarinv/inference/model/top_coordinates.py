@@ -23,10 +23,10 @@ The ``mean-height`` coordinate samples, instead of the top,
     m = ln μ − ln(1 − (μ/μ₁)^p)/p,   μ₁ = top₁ − TOP_SDS·sd,
 
 the lower storey's top map of :mod:`.coordinates` with ρ₀ = 0, ρ₁ = 1 and H₁ = μ₁ (top₁
-the upper end of the top's prior): m is ln μ until μ nears μ₁, and at fixed m the mean
-height stays within
-(μ/μ₁)^{p+1}·TOP_SDS of in place as sd moves. The sd's own map is capped at top₁/TOP_SDS
-(not at the row's top, which now follows from it). The map spans μ ∈ (0, μ₁), that is
+the upper end of the top's prior): m is ln μ until μ nears μ₁, and at fixed m,
+∂μ/∂sd = −TOP_SDS·(μ/μ₁)^{p+1} against −TOP_SDS at fixed top, so that the mean height
+stays nearly in place as sd moves. The sd's own map is capped at top₁/TOP_SDS (not at
+the row's top, which now follows from the sd). The map spans μ ∈ (0, μ₁), that is
 top < top₁ and a positive mean height; rows with a top below the prior's lower end (a mean
 height under a metre for the default prior) lie outside the prior, whose density there is
 zero. top = μ + TOP_SDS·sd has |∂(top, sd)/∂(m, sd)| = |∂μ/∂m|.
