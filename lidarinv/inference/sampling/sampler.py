@@ -465,14 +465,21 @@ def _diagnostics_thin(kept, tau, s: SamplerSettings) -> int:
     return max(thin, kept // 500)
 
 
+def _monitored_draws(sampler, discard, tau, s: SamplerSettings, monitor):
+    """The monitored quantities after ``discard`` steps, thinned for the diagnostics, and
+    the thinning."""
+    thin = _diagnostics_thin(sampler.iteration - discard, tau, s)
+    chain = sampler.get_chain(discard=discard, thin=thin)
+    blobs = sampler.get_blobs(discard=discard, thin=thin)
+    return monitor(chain, blobs), thin
+
+
 def _diagnostics(sampler, discard, tau, s: SamplerSettings, monitor, quantile_errors=True,
                  bulk_only=False):  # fmt: skip
     """:func:`.stopping.quantity_diagnostics` of the monitored quantities after
     ``discard`` steps."""
-    thin = _diagnostics_thin(sampler.iteration - discard, tau, s)
-    chain = sampler.get_chain(discard=discard, thin=thin)
-    blobs = sampler.get_blobs(discard=discard, thin=thin)
-    return quantity_diagnostics(monitor(chain, blobs), thin, quantile_errors, bulk_only)
+    draws, thin = _monitored_draws(sampler, discard, tau, s, monitor)
+    return quantity_diagnostics(draws, thin, quantile_errors, bulk_only)
 
 
 def _check_ess_rhat(sampler, discard, tau, s: SamplerSettings, monitor):
@@ -482,11 +489,12 @@ def _check_ess_rhat(sampler, discard, tau, s: SamplerSettings, monitor):
     computed; the quantile MCSE only where the rule asks for it (the result's is computed
     once, after the run)."""
     rule, kept = _rule(s), sampler.iteration - discard
-    quantities = _diagnostics(sampler, discard, tau, s, monitor, bulk_only=True)
+    draws, thin = _monitored_draws(sampler, discard, tau, s, monitor)
+    quantities = quantity_diagnostics(draws, thin, bulk_only=True)
     shortfalls = rule.bulk_shortfalls(quantities, kept)
     if not shortfalls:
         gated = s.quantile_mcse_max is not None
-        quantities = _diagnostics(sampler, discard, tau, s, monitor, quantile_errors=gated)
+        quantities = quantity_diagnostics(draws, thin, quantile_errors=gated)
         shortfalls = rule.shortfalls(quantities, kept)
     new_tau = np.array([d["tau"] for d in quantities.values()])
     new_tau = np.where(np.isnan(new_tau), np.inf, new_tau)
