@@ -31,6 +31,7 @@ plots them.
 
 import json
 import time
+from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -142,6 +143,7 @@ def invert_one(job):
     needed = result.diagnostics.get("model_error_needed")
     record["model_error_needed"] = float("nan") if needed is None else float(needed)
     record["misfit"] = any(f.startswith(MISFIT_FLAG) for f in result.flags)
+    record["prior_dominated"] = result.prior_dominated  # left at their prior by the data
     for name in ("local_z", "local_threshold", "local_window_m"):  # the local misfit check
         if name in result.diagnostics:
             record[name] = result.diagnostics[name]
@@ -228,6 +230,9 @@ def statistics(records, instrument) -> dict:
             sum(any(f.startswith(MODEL_ERROR_FLAG) for f in r["flags"]) for r in done)
         ),
         "median_instrument_floor": _percentile_of(done, "instrument_floor", 50),
+        # per parameter, the shots whose posterior stayed at its prior (records made
+        # before the comparison existed have none)
+        "prior_dominated": _prior_dominated_counts(done),
         "median_residual_scale": _percentile_of(done, "residual_scale", 50),
         "p90_residual_scale": _percentile_of(done, "residual_scale", 90),
         # CPU time against the quantiles' largest error from the shot's long reference run
@@ -271,6 +276,14 @@ def statistics(records, instrument) -> dict:
             out[q]["off_by_3m"] = len(far)
             out[q]["off_by_3m_unflagged"] = sum(not r["flags"] for r in far)
     return out
+
+
+def _prior_dominated_counts(done) -> dict:
+    """Per parameter, the shots where the posterior stayed at the prior, of those
+    compared."""
+    compared = [r for r in done if "prior_dominated" in r]
+    counts = Counter(name for r in compared for name in r["prior_dominated"])
+    return {"compared": len(compared), "shots": dict(counts.most_common())}
 
 
 def _contradictions(done) -> int:

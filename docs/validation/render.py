@@ -315,7 +315,22 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
         coverage = {"inside": "inside_90", "widened": "inside_90_widened"}
         text += difference_table("posterior", differences, coverage) + "\n"
         text += _reference_agreement(part.get("reference_agreement"), instrument)
+        text += _prior_dominated(part.get("prior_dominated"), instrument)
     return text + provenance(record)
+
+
+def _prior_dominated(counts, instrument) -> str:
+    """Per parameter, the shots whose posterior stayed at its prior."""
+    if not counts or not counts.get("compared"):
+        return ""
+    if not counts["shots"]:
+        return f"No parameter stayed at its prior on any of the {counts['compared']} shots.\n\n"
+    body = [[name, n, n / counts["compared"]] for name, n in counts["shots"].items()]
+    title = (
+        f"{instrument.upper()} parameters the waveform left at their prior (posterior ≈ "
+        f"prior), of {counts['compared']} shots"
+    )
+    return table(["parameter", "shots", "share"], body, title) + "\n"
 
 
 def _reference_agreement(rows, instrument) -> str:

@@ -5,6 +5,7 @@ import numpy as np
 
 from lidarinv.observe import processing_settings
 
+from ..model.parameters import TALLEST_STEM
 from ..model.tallest_stem import disc_area
 from ..model.waveform import RH_LEVELS, relative_heights
 from ..passes.ambiguity import describe_modes, ground_modes
@@ -20,6 +21,7 @@ from .footprint import (
     footprint_no_stem,
 )
 from .local_misfit import describe_local_misfit, local_misfit, return_width_bins
+from .prior_learning import prior_learning, support_prior_draws
 from .product_metrics import product_relative_heights
 from .result import QUANTILES, InversionResult
 
@@ -263,11 +265,19 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             post, problem.instrument, x, rng, problem.settings.footprint_cover_draws
         )
         units[FOOTPRINT_COVER] = "1"
+    # after every other use of the rng, so that the rest is drawn as without
+    prior = support_prior_draws(post, space, rng)
+    n_kept = run.chain.shape[0] - run.burn
+    ess = n_kept * run.chain.shape[1] / np.where(np.isfinite(run.tau), run.tau, np.inf)
+    # a conditioned tallest stem's prior is the stand's law, which the draws do not follow
+    compared = [name for name in space.names if name != TALLEST_STEM]
+    columns = [space.names.index(name) for name in compared]
+    learning = prior_learning(
+        x[:, columns], prior[:, columns], compared, dict(zip(space.names, ess, strict=True))
+    )
     top = float(np.max(values["top_height"]))
     profile_heights = np.linspace(0.0, top, 60)
     profile = post.mapping.crown_volume_profile(values, profile_heights)
-    n_kept = run.chain.shape[0] - run.burn
-    ess = n_kept * run.chain.shape[1] / np.where(np.isfinite(run.tau), run.tau, np.inf)
     a = problem.analysis
     modes = ground_modes(space, x)  # the evidence for each ground of a two-ground prior
     truth = {
@@ -305,6 +315,8 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             "tau_history": [[int(i), t] for i, t in run.tau_history],
             # the monitored reported quantities: bulk and tail ESS, split R̂, τ (steps)
             "quantities": run.quantities,
+            # each parameter's posterior against its prior (:mod:`.prior_learning`)
+            "prior_learning": learning,
             **fit,
             **({} if modes is None else {"ground_modes": modes}),
         },

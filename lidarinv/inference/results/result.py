@@ -8,6 +8,8 @@ import numpy as np
 
 import lidarinv
 
+from .prior_learning import describe_prior_dominated, prior_dominated
+
 #: Reported quantiles (%) of every quantity.
 QUANTILES = (5, 16, 50, 84, 95)
 _LABELS = ("p05", "p16", "median", "p84", "p95")
@@ -38,7 +40,9 @@ class InversionResult:
         ``map_log_prob``; ``quantities``: per reported quantity the stopping rule
         monitored, ``ess_bulk``, ``ess_tail``, ``rhat`` (rank-normalised split R̂) and
         ``tau`` (steps) of the chain after burn-in
-        (:func:`..sampling.stopping.quantity_diagnostics`).
+        (:func:`..sampling.stopping.quantity_diagnostics`); ``prior_learning``: per
+        sampled parameter its posterior against its prior (contraction, KS distance,
+        whether prior-dominated: :func:`.prior_learning.prior_learning`).
     flags : list of str
         Warnings (non-convergence, low acceptance, ...).
     profile_heights : array (m)
@@ -120,6 +124,12 @@ class InversionResult:
         raise KeyError(f"no quantity {name!r}; have {self.quantity_names}")
 
     @property
+    def prior_dominated(self) -> list:
+        """The parameters the waveform left at their prior (:mod:`.prior_learning`): their
+        posterior quantiles describe the prior, not the stand."""
+        return prior_dominated(self.diagnostics.get("prior_learning"))
+
+    @property
     def quantity_names(self) -> tuple:
         return tuple(self.parameter_names) + tuple(self.derived)
 
@@ -199,6 +209,9 @@ class InversionResult:
             f"{'converged' if self.converged else 'NOT CONVERGED'}"
         )
         lines += _convergence_lines(d.get("quantities", {}))
+        unconstrained = describe_prior_dominated(d.get("prior_learning"))
+        if unconstrained:
+            lines.append(unconstrained)
         if "seconds" in d:
             seconds = d["seconds"]
             start = f"start (MAP search) {seconds['start']:.1f} s"
@@ -239,6 +252,7 @@ class InversionResult:
             "residual_scale": float(self.diagnostics.get("residual_scale", np.nan)),
             **_convergence_extremes(self.diagnostics.get("quantities", {})),
             "cohorts": int((self.settings or {}).get("cohorts", 1)),
+            "prior_dominated": "; ".join(self.prior_dominated),
             "flags": "; ".join(self.flags),
         }
         canopy = self.footprint_canopy()

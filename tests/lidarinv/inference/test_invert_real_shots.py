@@ -33,6 +33,11 @@ def test_a_single_peak_real_shot_puts_the_ground_at_the_peak_under_a_low_canopy(
     rh98 = np.percentile(result.column("rh98"), [5, 95])
     assert rh98[1] < 10.0  # a low canopy, not the ground return read as a tall one
     assert np.median(result.column("gap_cover")) < 0.6
+    # every sampled parameter is set against its prior; the ground peak pins the ground
+    learning = result.diagnostics["prior_learning"]
+    assert set(learning) == set(result.diagnostics["sampled"])
+    assert "ground_elevation" not in result.prior_dominated
+    assert learning["ground_elevation"]["contraction"] > 0.3
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")
