@@ -85,17 +85,23 @@ def corner_plot(result: InversionResult, names=None, path=None):
     k = len(names)
     for ax in figure.axes:
         ax.tick_params(labelsize=7)
+    at_prior = set(result.prior_dominated)
     for i, name in enumerate(names):  # median [5 %, 95 %] above each histogram
         low, median, high = np.percentile(data[:, i], (5, 50, 95))
         short = QUANTITY_NAMES.get(name, name.replace("_", " "))
         figure.axes[i * k + i].set_title(
-            f"{short}\n{median:.3g} [{low:.3g}, {high:.3g}]", fontsize=8
+            f"{short}{' (≈ prior)' if name in at_prior else ''}\n"
+            f"{median:.3g} [{low:.3g}, {high:.3g}]",
+            fontsize=8,
+            color="0.45" if name in at_prior else "black",
         )
     lines = [
         f"shot {result.shot_id}",
         f"titles: median [5 %, 95 %], the {BAND}",
         "dashed lines: the 5, 50 and 95 % quantiles",
     ]
+    if at_prior & set(names):
+        lines.append("grey titles (≈ prior): posteriors the waveform left at their prior")
     if has_truth:
         lines.append("orange lines: the true values of this simulated shot")
         if "top_height" in names and result.truth.get("top_height") is not None:

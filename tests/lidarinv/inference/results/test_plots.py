@@ -147,6 +147,25 @@ def test_corner_titles_state_their_quantiles_and_do_not_overlap():
     assert "top height (m)" in labels and "gain (DN)" in labels
 
 
+def test_corner_marks_a_parameter_the_waveform_left_at_its_prior():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    result = tiny_result(seed=3)
+    result.diagnostics["prior_learning"] = {
+        "cover": {"ks_distance": 0.02, "contraction": 0.01, "prior_dominated": True},
+        "top_height": {"ks_distance": 0.8, "contraction": 0.9, "prior_dominated": False},
+    }
+    figure = corner_plot(result, names=["cover", "top_height"])
+    titles = {ax.get_title().split("\n")[0]: ax.title for ax in figure.axes if ax.get_title()}
+    assert set(titles) == {"crown cover (≈ prior)", "top height"}
+    assert titles["crown cover (≈ prior)"].get_color() != titles["top height"].get_color()
+    note = "\n".join(t.get_text() for t in figure.texts)
+    assert "left at their prior" in note
+    plain = corner_plot(tiny_result(seed=3), names=["cover", "top_height"])
+    assert "left at their prior" not in "\n".join(t.get_text() for t in plain.texts)
+
+
 def test_units_are_written_one_way():
     assert unit_label("m2/m2") == "m² m⁻²"
     assert unit_label("m3/m2/m") == "m³ m⁻² m⁻¹"
