@@ -327,8 +327,8 @@ def _prior_dominated(counts, instrument) -> str:
         return f"No parameter stayed at its prior on any of the {counts['compared']} shots.\n\n"
     body = [[name, n, n / counts["compared"]] for name, n in counts["shots"].items()]
     title = (
-        f"{instrument.upper()} parameters the waveform left at their prior (posterior ≈ "
-        f"prior), of {counts['compared']} shots"
+        f"{instrument.upper()} parameters whose posterior stayed at their prior, of "
+        f"{counts['compared']} shots"
     )
     return table(["parameter", "shots", "share"], body, title) + "\n"
 

@@ -101,7 +101,7 @@ def corner_plot(result: InversionResult, names=None, path=None):
         "dashed lines: the 5, 50 and 95 % quantiles",
     ]
     if at_prior & set(names):
-        lines.append("grey titles (≈ prior): posteriors the waveform left at their prior")
+        lines.append("grey titles (≈ prior): posteriors that stayed at their prior")
     if has_truth:
         lines.append("orange lines: the true values of this simulated shot")
         if "top_height" in names and result.truth.get("top_height") is not None:

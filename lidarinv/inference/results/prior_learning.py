@@ -147,4 +147,4 @@ def describe_prior_dominated(learning) -> str | None:
         f"contraction {learning[name]['contraction']:.2f})"
         for name in names
     )
-    return f"not constrained by the waveform (posterior ≈ prior): {cells}"
+    return f"posterior ≈ prior (these quantiles are the prior's): {cells}"

@@ -125,7 +125,7 @@ class InversionResult:
 
     @property
     def prior_dominated(self) -> list:
-        """The parameters the waveform left at their prior (:mod:`.prior_learning`): their
+        """The parameters whose posterior stayed at their prior (:mod:`.prior_learning`): their
         posterior quantiles describe the prior, not the stand."""
         return prior_dominated(self.diagnostics.get("prior_learning"))
 

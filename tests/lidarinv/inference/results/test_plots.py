@@ -161,9 +161,9 @@ def test_corner_marks_a_parameter_the_waveform_left_at_its_prior():
     assert set(titles) == {"crown cover (≈ prior)", "top height"}
     assert titles["crown cover (≈ prior)"].get_color() != titles["top height"].get_color()
     note = "\n".join(t.get_text() for t in figure.texts)
-    assert "left at their prior" in note
+    assert "stayed at their prior" in note
     plain = corner_plot(tiny_result(seed=3), names=["cover", "top_height"])
-    assert "left at their prior" not in "\n".join(t.get_text() for t in plain.texts)
+    assert "stayed at their prior" not in "\n".join(t.get_text() for t in plain.texts)
 
 
 def test_units_are_written_one_way():
