@@ -160,6 +160,24 @@ def test_batch_shape_and_invalid_rows_are_masked_not_raised():
     np.testing.assert_allclose(objects, vectors)
 
 
+@pytest.mark.parametrize("case", ["mixed two-tier", "understory"])
+def test_a_rows_waveform_does_not_depend_on_the_other_rows_of_its_batch(case):
+    # the sampler's target must be one density: the grid a batch shares reaches beyond
+    # every row's canopy, so a taller row beside it changes nothing (it changed the
+    # two-tier stand's samples by 2e-6 of their peak)
+    params = MC_CASES[case]
+    heights = fw.WaveformSimulator(INSTRUMENT).default_heights(40.0, -3.0)
+    model = ExpectedWaveformModel(INSTRUMENT, heights, params)
+    theta = _batch(model, np.random.default_rng(9), n=12)
+    theta[:, model.parameter_names.index("height_mean")] *= np.linspace(0.6, 1.6, 12)
+    batch = model.evaluate(theta)
+    for row in range(theta.shape[0]):
+        alone = model.evaluate(theta[row : row + 1])
+        peak = np.max(alone.samples)
+        np.testing.assert_allclose(batch.samples[row], alone.samples[0], rtol=0, atol=1e-9 * peak)
+        np.testing.assert_allclose(batch.gap_ground[row], alone.gap_ground[0], rtol=1e-12)
+
+
 def test_free_shape_mix_reproduces_fixed_mixes_and_masks_bad_mixes():
     heights = fw.WaveformSimulator(INSTRUMENT).default_heights(30.0, -2.0)
     params = _params(shape_mix={"cone": 0.3, "ellipsoid": 0.7})
