@@ -17,7 +17,9 @@ call's own overhead. The load average is recorded before and after.
         [--rows 64] [--repeats 2000] [--problem prepare|build] [--seed 0] [--tag _NAME]
         [--cache FOLDER] [--snapshot PATH.npz | --compare PATH.npz]
 
-``--snapshot`` saves each shot's rows and the call's output; ``--compare`` checks a later
+Each shot's rows are also evaluated one at a time: the largest difference from the
+batch's output (``batch_dependence``) says whether a row's log-posterior depends on the
+rows beside it. ``--snapshot`` saves each shot's rows and the call's output; ``--compare`` checks a later
 run against such a file, bit for bit (``numpy.array_equal``) and within 1e-12 relative.
 Writes studies/output/log_posterior_call[_TAG]/summary.json.
 """
@@ -171,6 +173,22 @@ def stage_breakdown(post, u, repeats):
     return {"timed call": total, **stages}
 
 
+def batch_dependence(post, u, out) -> dict:
+    """How much a row's log-posterior and blobs change when it is evaluated alone rather
+    than in its batch (the largest absolute difference over the rows; the sampler's
+    target is one density only where this is at rounding level)."""
+    alone = np.concatenate([post(u[i : i + 1]) for i in range(u.shape[0])])
+    with np.errstate(invalid="ignore"):
+        difference = np.abs(alone - out)
+    finite = np.isfinite(difference)
+    log_post = difference[:, 0][finite[:, 0]]
+    blobs = difference[:, 1:][finite[:, 1:]]
+    return {
+        "log_posterior_nats": float(log_post.max()) if log_post.size else 0.0,
+        "blobs": float(blobs.max()) if blobs.size else 0.0,
+    }
+
+
 def compare(saved, key, got):
     """Bit-equal, and largest relative difference, of one shot's output."""
     ref = saved[key]
@@ -222,6 +240,7 @@ def main(argv=None):
             "ms_per_call": milliseconds(wall), "cpu_ms_per_call": milliseconds(cpu),
             "stages_ms": stage_breakdown(post, u, args.stage_repeats),
         }  # fmt: skip
+        record["batch_dependence"] = batch_dependence(post, u, out)
         if saved is not None:
             record["equality"] = compare(saved, f"{key}_out", out)
         records.append(record)
@@ -239,6 +258,7 @@ def main(argv=None):
         print(f"{r['shot']} ({r['cohorts']} cohorts): wall {wall['median']:.3f} ms median, "
               f"{wall['min']:.3f} min; CPU {cpu['median']:.3f} median, {cpu['min']:.3f} min "
               f"| CPU ms per stage: {stages}")  # fmt: skip
+        print("   alone against in the batch:", r["batch_dependence"])
         if "equality" in r:
             print("   equality:", r["equality"])
     return summary
