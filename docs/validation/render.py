@@ -325,7 +325,7 @@ def _prior_dominated(counts, instrument) -> str:
         return ""
     if not counts["shots"]:
         return f"No parameter stayed at its prior on any of the {counts['compared']} shots.\n\n"
-    body = [[name, n, n / counts["compared"]] for name, n in counts["shots"].items()]
+    body = [[literal(name), n, n / counts["compared"]] for name, n in counts["shots"].items()]
     title = (
         f"{instrument.upper()} parameters whose posterior stayed at their prior, of "
         f"{counts['compared']} shots"
