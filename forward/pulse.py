@@ -353,7 +353,7 @@ def layer_kernel(pulse, bin_height, oversampling, tolerance):
     return q_min, taps
 
 
-def broaden(samples, bin_height: float, sigma_m) -> np.ndarray:
+def broaden(samples, bin_height: float, sigma_m, reach_m=None) -> np.ndarray:
     """Waveforms convolved with a Gaussian: the pulse widened by the receiver's response
     or by the terrain's slope and roughness within the footprint.
 
@@ -365,6 +365,11 @@ def broaden(samples, bin_height: float, sigma_m) -> np.ndarray:
         Δz.
     sigma_m : float or array (n,) (m)
         σ of the Gaussian, per row (0: unchanged).
+    reach_m : float (m), optional
+        The largest σ the zero padding must allow for, where the caller knows it (a
+        prior's bound): the transform's length then depends on it alone, so that a row's
+        result is the same whatever rows share its batch. The rows' largest σ if None or
+        smaller.
 
     Returns
     -------
@@ -387,7 +392,8 @@ def broaden(samples, bin_height: float, sigma_m) -> np.ndarray:
         raise ValueError("broadening σ must be finite and ≥ 0")
     if not np.any(sigma > 0):
         return samples.copy()
-    pad = int(np.ceil(5.0 * sigma.max() / bin_height))
+    reach = sigma.max() if reach_m is None else max(float(reach_m), sigma.max())
+    pad = int(np.ceil(5.0 * reach / bin_height))
     # the shortest fast transform length, not the next power of two (half the time at
     # some window lengths)
     size = scipy.fft.next_fast_len(bins + 2 * pad, real=True)

@@ -19,7 +19,13 @@ from .depth import groups, tree_depth
 from .grid import clip_keeping_energy, grid_canopy
 from .ground import ground_return
 from .interpolation import catmull_rom, grid_operator
-from .settings import GRID_UNDERSHOOT, ExpectedWaveforms, ModelSettings, engine_oversampling
+from .settings import (
+    GRID_MARGIN_CELLS,
+    GRID_UNDERSHOOT,
+    ExpectedWaveforms,
+    ModelSettings,
+    engine_oversampling,
+)
 from .tables import radial_rule, tail_matrix
 from .vectors import (
     CONDITIONING_FIELDS,
@@ -372,7 +378,10 @@ class ExpectedWaveformModel:
         reach = np.max(np.ceil((self._edges[-1] - g - z0) / step)) + 3
         understory = v[:, _I["understory_lai"]] > 0
         hu = np.where(understory, v[:, _I["understory_height"]], 0.0)
-        span = np.max(np.ceil((np.maximum(top, hu) - z0) / step))
+        # two cells beyond the tallest canopy, where E[P] = 1: the interpolation's end
+        # condition then reaches no row's canopy, and a row's samples are the same
+        # whatever other rows share its batch (one target density for the sampler)
+        span = np.max(np.ceil((np.maximum(top, hu) - z0) / step)) + GRID_MARGIN_CELLS
         nodes = max(2, int(min(span, reach)) + 1)
         lai, top_u = v[:, _I["understory_lai"]], v[:, _I["understory_height"]]
         scale_u = np.divide(

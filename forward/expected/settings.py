@@ -46,6 +46,11 @@ class ModelSettings:
 #: canopy energy; rows beyond it are recomputed on the per-edge path.
 GRID_UNDERSHOOT = 1e-5
 
+#: Cells of the grid path beyond the tallest canopy of a batch (E[P] = 1 there): the
+#: interpolation's four-point stencil then never meets the grid's end within any row's
+#: canopy, so that a row's samples do not depend on the other rows of its batch.
+GRID_MARGIN_CELLS = 2
+
 #: Settings taken as converged (the reference of the benchmark and the convergence test).
 CONVERGED = ModelSettings(radial_nodes=48, height_nodes=1024, tail=1e-9, depth_nodes=None)
 

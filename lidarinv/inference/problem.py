@@ -221,7 +221,10 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
     if gain.marginalised:
         likelihood = likelihood.with_gain_prior(gain.prior)
     favd_range = (0.0, np.inf) if settings.favd_range is None else settings.favd_range
-    post = LogPosterior(space, ShotModel(mapping, expected), likelihood, favd_range)
+    broadening = space.by_name.get("pulse_broadening")
+    reach = None if broadening is None else getattr(broadening.prior, "upper", None)
+    model = ShotModel(mapping, expected, reach)
+    post = LogPosterior(space, model, likelihood, favd_range)
     return InversionProblem(shot, post, settings)
 
 

@@ -59,12 +59,18 @@ class ShotModel:
     mapping : StandMapping
     expected : forward.expected.ExpectedWaveformModel
         Built on the window's axis with ``free=mapping.model_free``.
+    broadening_reach_m : float (m), optional
+        The largest ``pulse_broadening`` a row may have (its prior's upper bound): the
+        broadening's padding is sized for it, not for the batch's widest row
+        (:func:`forward.pulse.broaden`), so that a row's waveform does not depend on the
+        rows beside it.
     """
 
-    def __init__(self, mapping: StandMapping, expected):
+    def __init__(self, mapping: StandMapping, expected, broadening_reach_m=None):
         if tuple(expected.parameter_names) != tuple(mapping.model_free):
             raise ValueError("the expected model must be built with free=mapping.model_free")
         self.mapping, self.expected = mapping, expected
+        self.broadening_reach_m = broadening_reach_m
 
     @property
     def axis(self) -> np.ndarray:
@@ -101,7 +107,8 @@ class ShotModel:
         width = values.get("pulse_broadening")
         if width is None or not np.any(np.asarray(width) > 0):
             return samples
-        return broaden(samples, self.expected.instrument.bin_height, width)
+        bin_height = self.expected.instrument.bin_height
+        return broaden(samples, bin_height, width, self.broadening_reach_m)
 
     def evaluate(self, values) -> ModelRows:
         """Expected waveforms and derived quantities of parameter rows, the waveforms

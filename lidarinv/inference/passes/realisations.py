@@ -125,6 +125,7 @@ def explicit_stands(log_posterior: LogPosterior, x, side, rng) -> tuple[list, np
     side : float (m)
         Side of each square plot.
     rng : numpy.random.Generator
+        Each stand is drawn from a stream of its own (:func:`realisation_streams`).
 
     Returns
     -------
@@ -139,10 +140,37 @@ def explicit_stands(log_posterior: LogPosterior, x, side, rng) -> tuple[list, np
         CONDITIONING_FIELDS.values()
     )
     stands = []
-    for row in full:
+    for row, stream in zip(full, realisation_streams(rng, full.shape[0])):
         params, _ = params_from_vector(row, post.model.expected.template)
-        stands.append((params, realise(params, side, rng)))
+        stands.append((params, realise(params, side, stream)))
     return stands, full
+
+
+def realisation_streams(rng, count) -> list:
+    """One independent generator per explicit stand (common random numbers).
+
+    Drawn from one stream, a stand whose Poisson count changes (a MAP moved in its fourth
+    digit) would shift the draws of every stand after it, and so redraw the whole
+    discrepancy; with a stream each, it redraws that stand alone. The children come from
+    ``rng``'s seed sequence (:meth:`numpy.random.Generator.spawn`), not from its state.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Made from a seed sequence (as :func:`numpy.random.default_rng` makes every one).
+    count : int
+
+    Returns
+    -------
+    list of numpy.random.Generator
+    """
+    try:
+        return rng.spawn(int(count))
+    except TypeError as error:  # a bit generator made without a seed sequence
+        raise TypeError(
+            "the discrepancy's realisations need a generator made from a seed sequence "
+            f"(numpy.random.default_rng): {error}"
+        ) from None
 
 
 #: Side of the plots of :func:`footprint_cover`, in footprint diameters (4σf): the 3σf disc

@@ -31,6 +31,21 @@ def test_broadening_a_gaussian_adds_its_width_in_quadrature():
         broaden(rows, DZ, -1.0)
 
 
+def test_with_a_reach_a_rows_broadening_does_not_depend_on_the_rows_beside_it():
+    # a return near the window's top and a σ under a bin (the transfer function cut at
+    # Nyquist rings), where the padding's length shows: the batch's widest row sets the
+    # transform's length unless the reach fixes it
+    axis = np.arange(400) * DZ
+    pulse = GaussianPulse(15.0)
+    row = point_returns(pulse, axis, np.array([axis[-8]]), np.array([1.0]) * DZ,
+                        pulse.support(1e-9))  # fmt: skip
+    alone = broaden(row, DZ, 0.05, reach_m=4.0)[0]
+    beside = broaden(np.vstack([row, row]), DZ, np.array([0.05, 3.5]), reach_m=4.0)[0]
+    np.testing.assert_allclose(beside, alone, rtol=0, atol=1e-14 * alone.max())
+    unfixed = broaden(np.vstack([row, row]), DZ, np.array([0.05, 3.5]))[0]
+    assert np.max(np.abs(unfixed - broaden(row, DZ, 0.05)[0])) > 1e-6 * alone.max()
+
+
 @pytest.mark.parametrize("bins", [337, 512, 1021])
 def test_broadening_matches_a_direct_convolution_at_any_window_length(bins):
     # a band-limited waveform (smooth peaks well inside the window), convolved bin by bin

@@ -208,6 +208,21 @@ def test_realisations_scatter_about_the_expected_waveform(problems, shot, rng):
     assert np.all(spread[above] < 1e-6 * spread.max())
 
 
+def test_each_realisation_has_a_stream_of_its_own(problems, shot):
+    """Common random numbers: a denser stand in one row (another Poisson count) leaves
+    every other row's realisation as it was."""
+    problem = problems[False]
+    post = problem.log_posterior
+    truth = np.array([shot.truth[name] for name in problem.space.names])
+    x = np.repeat(truth[None, :], 4, axis=0)
+    first = realisation_residuals(post, problem.instrument, x, np.random.default_rng(5))
+    x[1, problem.space.names.index("cover")] *= 1.2  # more crowns: more stems
+    second = realisation_residuals(post, problem.instrument, x, np.random.default_rng(5))
+    unchanged = [0, 2, 3]
+    np.testing.assert_array_equal(second[unchanged], first[unchanged])
+    assert not np.allclose(second[1], first[1])
+
+
 def test_footprint_cover_draws_scatter_about_the_stand_cover(problems, shot, rng):
     """One footprint's crown cover is a draw whose mean over footprints is the stationary
     stand's cover; the samples not given a draw are NaN."""
