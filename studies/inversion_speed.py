@@ -28,7 +28,9 @@ default the test data) holds a shot's long reference run, the shot is inverted w
 reference's seed, so that both sample the same prepared posterior, and each run's
 reported quantities' 5/50/95 % quantiles are compared with the reference's, in the
 reference's posterior sd; they are also compared with the ``tau`` rule's run of the same
-shot and seed where it ran. ``--combine`` joins such runs' ``summary.json`` files into
+shot and seed where it ran. ``--seed-offset K`` prepares each such shot with the
+reference's seed plus K instead: the error then also holds what the preparation's own
+randomness (the MAP search, the discrepancy's realisations) moves. ``--combine`` joins such runs' ``summary.json`` files into
 one table and curve.
 
     python studies/inversion_speed.py --data ../shared/data/real --gedi-shots ID ...
@@ -269,6 +271,11 @@ def main():
     parser.add_argument(
         "--reference-seed", type=int,
         help="seed of shots the reference file does not hold yet (that of their references)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--seed-offset", type=int, default=0,
+        help="prepare each referenced shot with its reference's seed plus this: the error "
+        "then holds what another MAP search and set of discrepancy realisations change",
     )  # fmt: skip
     args = parser.parse_args()
     if args.combine:

@@ -116,12 +116,16 @@ def _run_record(result, seconds, cpu_seconds) -> dict:
 def run_real(args, settings) -> dict:
     """Each real shot under each stopping variant, against its reference
     (``studies/reference_posteriors.py``) where the store holds one: the run then uses
-    the reference's seed, so that both sample the same prepared posterior."""
+    the reference's seed, so that both sample the same prepared posterior; or that seed
+    plus ``args.seed_offset``, so that the posterior is prepared again (another MAP
+    search and another set of discrepancy realisations)."""
     shots = [
         *real_observations(args.data, "gedi", args.gedi_shots or []),
         *real_observations(args.data, "lvis", args.lvis_shots or []),
     ]
     variants = stopping_variants(args.stop_rule, args.min_taus, args.quantile_mcse)
+    if args.seed_offset:  # another preparation: a variant of its own in the table
+        variants = {f"{name}-seed+{args.seed_offset}": c for name, c in variants.items()}
     store = read_store(args.reference_file)
     rows = []
     folder = harness.output_folder("inversion_speed", args.tag)
@@ -129,7 +133,7 @@ def run_real(args, settings) -> dict:
     for obs, seeds in list(zip(shots, seeds_of_shots))[args.skip_shots :]:
         reference = store.get(f"{obs.instrument}:{obs.shot_id}")
         run_seed = seeds if args.reference_seed is None else args.reference_seed
-        run_seed = run_seed if reference is None else reference["seed"]
+        run_seed = run_seed if reference is None else reference["seed"] + args.seed_offset
         for name, changes in variants.items():
             sampler = replace(settings.sampler, **changes)
             result, seconds, cpu = _timed_result(obs, replace(settings, sampler=sampler), run_seed)

@@ -17,7 +17,9 @@ def render_time_vs_error(record, figures: Path, key: str) -> str:
         "model error). *Error* is the largest distance between a run's quantile and the "
         "reference's, over the 5/50/95 % quantiles of every reported quantity, in the "
         "reference's posterior sd; the target is 0.2 (issue 46). The reference's own error "
-        "is its restarts' spread over √restarts, the largest over the quantities.\n\n"
+        "is its restarts' spread over √restarts, the largest over the quantities. A variant "
+        "ending in -seed+K was prepared with the reference's seed plus K: its error also "
+        "holds what another MAP search and another set of discrepancy realisations move.\n\n"
     )
     rows = [
         [name, v["shots"], v["median_cpu_seconds"], v["converged_fraction"],

@@ -69,8 +69,11 @@ def test_the_store_holds_long_runs_of_both_storey_models_and_instruments():
 def test_a_default_gedi_inversion_agrees_with_the_long_runs(pair):
     """The default settings' run stops on the rule, samples the reference's posterior (the
     same stand model and model error from the same seed) and reports every quantity's
-    5/50/95 % quantiles within 0.2 posterior sd of the long runs'. The reference is known
-    to better than half that (its restarts' spread), so that the comparison can tell."""
+    5/50/95 % quantiles within 0.2 posterior sd of the long runs', or, where the run's own
+    quantile Monte Carlo error says it is less certain than that (a heavy tail's 95 %
+    quantile: the rule stops on ESS, not on that error), within three times that error:
+    the run's stated error must hold. The reference is known to better than half the
+    tolerance (its restarts' spread), so that the comparison can tell."""
     observation, reference = pair
     assert max(reference["reference_error_sd"].values()) <= REFERENCE_ERROR_SD
     result = invert_shot(observation, rng=np.random.default_rng(reference["seed"]))
@@ -84,7 +87,11 @@ def test_a_default_gedi_inversion_agrees_with_the_long_runs(pair):
     # another machine's arithmetic may move the MAP, and with it the floor, a little
     assert floor is None or floor == pytest.approx(reference_floor, rel=1e-3)
     errors = quantile_errors(result, reference)
-    assert max(errors.values()) <= TOLERANCE_SD, errors
+    quantities = result.diagnostics["quantities"]
+    stated = {n: quantities.get(n, {}).get("quantile_mcse") for n in errors}
+    stated = {n: 0.0 if v is None else float(np.nan_to_num(v)) for n, v in stated.items()}
+    beyond = {n: e for n, e in errors.items() if e > max(TOLERANCE_SD, 3 * stated[n])}
+    assert not beyond, (errors, stated)
 
 
 def test_a_prepared_posterior_sampled_again_is_the_inversion_of_the_same_seed():
