@@ -30,8 +30,8 @@ reported quantities' 5/50/95 % quantiles are compared with the reference's, in t
 reference's posterior sd; they are also compared with the ``tau`` rule's run of the same
 shot and seed where it ran. ``--seed-offset K`` prepares each such shot with the
 reference's seed plus K instead: the error then also holds what the preparation's own
-randomness (the MAP search, the discrepancy's realisations) moves. ``--combine`` joins such runs' ``summary.json`` files into
-one table and curve.
+randomness (the MAP search, the discrepancy's realisations) moves. ``--combine`` joins
+such runs' ``summary.json`` files into one table and curve.
 
     python studies/inversion_speed.py --data ../shared/data/real --gedi-shots ID ...
                                       --lvis-shots ID ... [--stop-rule ess-rhat tau]
