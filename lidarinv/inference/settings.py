@@ -59,7 +59,7 @@ class RealisationSettings:
         (:mod:`.model_error`). 0 for none.
     """
 
-    count: int = 64
+    count: int = 256
     shrinkage: float = 0.3
     ball: float = 1.0
     plot_diameters: float = 3.0
