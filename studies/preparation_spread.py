@@ -12,6 +12,9 @@ search, the realisations of the discrepancy) and samples it. Per shot and count,
 reported quantities' 5/50/95 % quantiles are compared across the seeds: their sd over the
 runs, in the runs' mean posterior sd. That spread holds the sampler's own Monte Carlo
 error and the preparation's; a count that shrinks it shrinks the preparation's share.
+Each run also states both shares of its own (the realisations' bootstrap spread,
+:mod:`lidarinv.inference.results.realisation_spread`, and the quantile MCSE); the record
+compares their sum in quadrature with the spread measured over the seeds.
 
 Writes studies/output/preparation_spread[_TAG]/summary.json.
 """
@@ -41,6 +44,18 @@ def quantile_spread(runs: list) -> dict:
     return dict(sorted(out.items()))
 
 
+def stated_spread(runs: list, name: str) -> float:
+    """The spread the runs themselves state for a quantity: the realisations' bootstrap
+    spread and the sampler's quantile Monte Carlo error added in quadrature, averaged over
+    the runs (NaN where a run stated neither)."""
+    values = []
+    for run in runs:
+        parts = [run["realisation_spread"].get(name), run["quantile_mcse"].get(name)]
+        parts = [p for p in parts if p is not None and np.isfinite(p)]
+        values.append(float(np.hypot(*parts)) if len(parts) == 2 else np.nan)
+    return float(np.mean(values))
+
+
 def shot_spread(observation, count: int, seeds) -> dict:
     """One shot's runs at one count of realisations, and their spread."""
     settings = InversionSettings(realisations=RealisationSettings(count=count))
@@ -48,14 +63,20 @@ def shot_spread(observation, count: int, seeds) -> dict:
     for seed in seeds:
         cpu = time.process_time()
         result = invert_shot(observation, settings, rng=np.random.default_rng(seed))
+        quantities = result.diagnostics.get("quantities", {})
         runs.append({
             "seed": int(seed), "steps": int(result.diagnostics["n_steps"]),
             "converged": result.converged, "cpu_seconds": time.process_time() - cpu,
             "reported": reported_quantiles(result),
+            # the run's own estimates of the two shares: the realisations' (bootstrap)
+            # and the sampler's (quantile Monte Carlo error), in posterior sd
+            "realisation_spread": result.diagnostics.get("realisation_spread", {}).get("spread", {}),
+            "quantile_mcse": {n: q.get("quantile_mcse") for n, q in quantities.items()},
         })  # fmt: skip
         print(json.dumps({k: runs[-1][k] for k in ("seed", "steps", "cpu_seconds")}), flush=True)
     spread = quantile_spread([run["reported"] for run in runs])
     largest = max(spread, key=lambda name: max(spread[name]))
+    stated = {name: stated_spread(runs, name) for name in spread}
     return {
         "instrument": observation.instrument,
         "shot": str(observation.shot_id),
@@ -64,6 +85,11 @@ def shot_spread(observation, count: int, seeds) -> dict:
         "spread_sd": spread,
         "largest_spread_sd": max(spread[largest]),
         "largest_quantity": largest,
+        # per quantity, what the runs said of themselves: √(bootstrap² + MCSE²), mean over runs
+        "stated_spread_sd": stated,
+        "largest_stated_spread_sd": max(
+            (v for v in stated.values() if np.isfinite(v)), default=None
+        ),
         "median_cpu_seconds": float(np.median([run["cpu_seconds"] for run in runs])),
     }
 

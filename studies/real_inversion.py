@@ -140,6 +140,8 @@ def invert_one(job):
     record["predictive_p_value"] = result.diagnostics["predictive_p_value"]
     record["residual_scale"] = result.diagnostics.get("residual_scale", np.nan)
     record["instrument_floor"] = float(result.diagnostics.get("instrument_floor", np.nan))
+    # how far another draw of the discrepancy's realisations moves the quantiles (sd)
+    record["realisation_spread"] = result.summary_row()["max_realisation_spread"]
     needed = result.diagnostics.get("model_error_needed")
     record["model_error_needed"] = float("nan") if needed is None else float(needed)
     record["misfit"] = any(f.startswith(MISFIT_FLAG) for f in result.flags)
@@ -234,6 +236,8 @@ def statistics(records, instrument) -> dict:
         # before the comparison existed have none)
         "prior_dominated": _prior_dominated_counts(done),
         "median_residual_scale": _percentile_of(done, "residual_scale", 50),
+        "median_realisation_spread": _percentile_of(done, "realisation_spread", 50),
+        "p90_realisation_spread": _percentile_of(done, "realisation_spread", 90),
         "p90_residual_scale": _percentile_of(done, "residual_scale", 90),
         # CPU time against the quantiles' largest error from the shot's long reference run
         "reference_agreement": [

@@ -105,6 +105,8 @@ def _run_record(result, seconds, cpu_seconds) -> dict:
         "converged": result.converged,
         "cohorts": result.settings.get("cohorts"),
         "instrument_floor": result.diagnostics.get("instrument_floor"),
+        # how far another draw of the discrepancy's realisations moves the quantiles (sd)
+        "realisation_spread": result.summary_row()["max_realisation_spread"],
         "quantities": {  # ESS, R̂ and τ of the monitored quantities
             name: {k: v for k, v in q.items()} for name, q in d.get("quantities", {}).items()
         },

@@ -305,6 +305,13 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
                 f"{part['model_error_raised']} shots"
                 + (f" (median η {_cell(floor)} of the signal per bin)." if floor else ".")
             )
+        if part.get("median_realisation_spread") is not None:
+            text += (
+                " Another draw of the discrepancy's realisations would move the quantiles "
+                f"(the largest over the reported quantities, by bootstrap) by "
+                f"{_cell(part['median_realisation_spread'])} posterior sd at the median shot, "
+                f"{_cell(part.get('p90_realisation_spread'))} at the 90th percentile."
+            )
         if part.get("two_cohorts_bic_over_10") is not None:
             text += (
                 f" {part['two_cohorts']} shots chose two height cohorts, "

@@ -32,6 +32,7 @@ from .passes.model_error import (
 from .passes.realisations import realisation_covariance
 from .problem import InversionProblem, build_problem, fixed_discrepancy
 from .results.collect import collect_result
+from .results.realisation_spread import DiscrepancyDraws, add_realisation_spread
 from .results.reported import reported_monitor
 from .results.result import InversionResult
 from .sampling.sampler import run_sampler
@@ -139,6 +140,8 @@ class Preparation:
     competing_grounds : list of float or None (m)
         The MAP's ground first, then other optima's, where they explain the shot with the
         ground elsewhere (:func:`.ambiguity.competing_grounds`).
+    discrepancy_draws : DiscrepancyDraws or None
+        The realisations the discrepancy covariance was made from, where it was simulated.
     """
 
     problem: InversionProblem
@@ -149,6 +152,7 @@ class Preparation:
     instrument_floor: float | None = None
     model_error_needed: float | None = None
     competing_grounds: list | None = None
+    discrepancy_draws: DiscrepancyDraws | None = None
 
     def diagnostics(self) -> dict:
         """The passes' outcomes for the result's diagnostics."""
@@ -212,18 +216,23 @@ def _prepare(observation, settings, rng) -> Preparation:
             estimate = simulation.estimate
             prepared.discrepancy_seconds = simulation.seconds
             least = settings.realisations.instrument_floor
+            diagonal = np.zeros(covariance.shape[0])
             if least > 0:  # the instrument model's own error, on the diagonal
                 unit = fixed_discrepancy(problem.shot, replace(settings, discrepancy=1.0))
                 simulated_only = likelihood.with_fixed_discrepancy(covariance)
                 needed = shot_floor(pilot, simulated_only, estimate, unit, least)
                 floor = bounded_floor(needed, least)
-                covariance = covariance + floor**2 * np.diag(unit)
+                diagonal = floor**2 * unit
+                covariance = covariance + np.diag(diagonal)
                 prepared.instrument_floor, prepared.model_error_needed = floor, needed
                 if floor > least:
                     prepared.notes.append(describe_floor(floor, least))
                 if exceeds_ceiling(needed, least):
                     prepared.notes.append(describe_misfit(needed))
             problem = problem.with_likelihood(likelihood.with_fixed_discrepancy(covariance))
+            prepared.discrepancy_draws = DiscrepancyDraws(
+                simulation.residuals, settings.realisations.shrinkage, diagonal
+            )
             if not estimate.converged:
                 prepared.notes.append("MAP optimiser did not report convergence")
         else:
@@ -296,4 +305,7 @@ def _sample(prepared, rng, sampler, progress, backend) -> InversionResult:
         run.seconds["discrepancy"] = prepared.discrepancy_seconds
     result = collect_result(problem, run, rng)
     result.diagnostics.update(prepared.diagnostics())
+    resamples = problem.settings.realisations.resamples
+    if prepared.discrepancy_draws is not None and resamples:
+        add_realisation_spread(result, problem, prepared.discrepancy_draws, rng, resamples)
     return result

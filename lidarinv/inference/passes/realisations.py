@@ -259,10 +259,13 @@ class SimulatedDiscrepancy:
         The simulation's wall time.
     estimate : MapEstimate
         The pilot posterior's MAP search it was simulated about.
+    residuals : array (K, bins) (DN)
+        The realisation residuals the covariance was made from.
     """
 
     seconds: float
     estimate: object
+    residuals: np.ndarray
 
 
 def realisation_covariance(
@@ -290,8 +293,8 @@ def realisation_covariance(
         C of :func:`discrepancy_covariance`, for the likelihood's
         ``with_fixed_discrepancy``.
     simulation : SimulatedDiscrepancy
-        The simulation's wall time and the pilot's MAP search, whose optimum the sampler
-        may start from.
+        The simulation's wall time, the pilot's MAP search (whose optimum the sampler
+        may start from) and the residuals.
     """
     settings = RealisationSettings() if settings is None else settings
     sampler = SamplerSettings() if sampler is None else sampler
@@ -307,4 +310,4 @@ def realisation_covariance(
         pilot, instrument, x, rng, settings.plot_diameters, settings.accuracy
     )
     covariance = discrepancy_covariance(residuals, settings.shrinkage)
-    return covariance, SimulatedDiscrepancy(time.perf_counter() - clock, estimate)
+    return covariance, SimulatedDiscrepancy(time.perf_counter() - clock, estimate, residuals)

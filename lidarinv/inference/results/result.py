@@ -9,6 +9,7 @@ import numpy as np
 import lidarinv
 
 from .prior_learning import describe_prior_dominated, prior_dominated
+from .realisation_spread import describe_spread, largest_spread
 
 #: Reported quantiles (%) of every quantity.
 QUANTILES = (5, 16, 50, 84, 95)
@@ -209,6 +210,8 @@ class InversionResult:
             f"{'converged' if self.converged else 'NOT CONVERGED'}"
         )
         lines += _convergence_lines(d.get("quantities", {}))
+        if "realisation_spread" in d:
+            lines.append(describe_spread(d["realisation_spread"]))
         unconstrained = describe_prior_dominated(d.get("prior_learning"))
         if unconstrained:
             lines.append(unconstrained)
@@ -251,6 +254,7 @@ class InversionResult:
             "predictive_p_value": float(self.diagnostics.get("predictive_p_value", np.nan)),
             "residual_scale": float(self.diagnostics.get("residual_scale", np.nan)),
             **_convergence_extremes(self.diagnostics.get("quantities", {})),
+            "max_realisation_spread": largest_spread(self.diagnostics),
             "cohorts": int((self.settings or {}).get("cohorts", 1)),
             "prior_dominated": "; ".join(self.prior_dominated),
             "flags": "; ".join(self.flags),
