@@ -131,6 +131,9 @@ def realisation_spread(
     return RealisationSpread(spread, float(np.min(fractions)))
 
 
+#: The heights compared with the products, measured beside the monitored quantities.
+COMPARED_HEIGHTS = ("rh98_product", "rh98_footprint")
+
 #: A quantity whose quantiles another draw of the realisations would move by more than
 #: this (posterior sd) is flagged: the answer depends on the seed more than on the data's
 #: resolution of it, and a larger ``RealisationSettings.count`` is needed.
@@ -140,9 +143,11 @@ FLAG_SPREAD_SD = 0.5
 def add_realisation_spread(result, problem, draws: DiscrepancyDraws, rng, resamples) -> None:
     """Measure :func:`realisation_spread` for a result's reported quantities and record it.
 
-    Adds ``diagnostics["realisation_spread"]`` (``spread``: name → posterior sd,
-    ``weight_fraction``, ``resamples``) and its wall time to ``diagnostics["seconds"]``,
-    and a flag where a quantity's spread exceeds :data:`FLAG_SPREAD_SD`.
+    Measured for the quantities the stopping rule monitored (the reported ones) and
+    :data:`COMPARED_HEIGHTS`. Adds ``diagnostics["realisation_spread"]`` (``spread``: name
+    → posterior sd, ``weight_fraction``, ``resamples``) and its wall time to
+    ``diagnostics["seconds"]``, and a flag where a quantity's spread exceeds
+    :data:`FLAG_SPREAD_SD`.
 
     Parameters
     ----------
@@ -154,8 +159,8 @@ def add_realisation_spread(result, problem, draws: DiscrepancyDraws, rng, resamp
     resamples : int
     """
     clock = time.perf_counter()
-    names = [n for n in result.diagnostics.get("quantities", {}) if n in result.quantity_names]
-    names = names or [n for n in REPORTED if n in result.quantity_names]
+    names = [*result.diagnostics.get("quantities", {}), *REPORTED, *COMPARED_HEIGHTS]
+    names = [n for n in dict.fromkeys(names) if n in result.quantity_names]
     x = result.samples[:, : problem.space.ndim]
     columns = {name: result.column(name) for name in names}
     found = realisation_spread(problem.log_posterior, draws, x, columns, rng, resamples)
