@@ -22,7 +22,11 @@ from .render import (
     render_real_products,
     render_speed,
 )
-from .render_reference import render_coordinates_vs_reference, render_time_vs_error
+from .render_reference import (
+    render_coordinates_vs_reference,
+    render_preparation_spread,
+    render_time_vs_error,
+)
 
 #: Page → (title, intro, sections); a section is (key, heading, renderer, how to run it).
 PAGES = {
@@ -63,6 +67,13 @@ PAGES = {
                 "--lvis-shots ID ... --steps 25000 --restarts 4; python "
                 "studies/inversion_speed.py --data DATA --gedi-shots ID ... --lvis-shots ID ... "
                 "--min-taus 10 20 --tag _real",
+            ),
+            (
+                "preparation-spread",
+                "Real shots prepared with other seeds: the spread, and what the runs stated",
+                render_preparation_spread,
+                "python studies/preparation_spread.py --data DATA --gedi-shots ID ... "
+                "--lvis-shots ID ... --counts 256 --seeds 6 --tag _TAG",
             ),
             (
                 "sampling-coordinates-real",
