@@ -30,7 +30,8 @@ REFERENCE_ERROR_SD = 0.5 * TOLERANCE_SD
 
 
 def _fastest_shipped(instrument):
-    """The shipped observation of an instrument whose reference has the shortest τ, and
+    """The shipped observation of an instrument whose reference has the shortest τ (the
+    median over its restarts: one restart's excursion into a tail does not decide), and
     that reference (a list of one pair, for parametrisation)."""
     shots = iter_observations(example_file(f"{instrument}-l1b"))
     held = {o.shot_id: o for o in shots if isinstance(o, Observation)}
@@ -39,7 +40,7 @@ def _fastest_shipped(instrument):
         for r in REFERENCES.values()
         if r["instrument"] == instrument and int(r["shot"]) in held
     ]
-    return [min(pairs, key=lambda pair: max(pair[1]["largest_tau"]))] if pairs else []
+    return [min(pairs, key=lambda pair: np.median(pair[1]["largest_tau"]))] if pairs else []
 
 
 def quantile_errors(result, reference) -> dict:
