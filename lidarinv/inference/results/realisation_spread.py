@@ -185,7 +185,8 @@ def describe_spread(found) -> str:
     cells = ", ".join(f"{name} {v:.2f}" for name, v in found["spread"].items())
     return (
         "spread of the 5/50/95 % quantiles over the discrepancy's realisations (posterior "
-        f"sd, {found['resamples']} bootstrap resamples): {cells}"
+        f"sd, {found['resamples']} bootstrap resamples, weights' effective fraction ≥ "
+        f"{found['weight_fraction']:.2f}): {cells}"
     )
 
 
