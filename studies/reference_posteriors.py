@@ -124,6 +124,7 @@ def reference(observation, seed: int, restarts: int, steps: int, earlier=None) -
         "restarts": first + restarts,
         "steps_per_restart": steps,
         "cohorts": prepared.problem.settings.cohorts,
+        "realisations": prepared.problem.settings.realisations.count,
         "instrument_floor": diagnostics.get("instrument_floor"),
         "draws": int(sum(r.samples.shape[0] for r in results)),
         "largest_tau": [largest_tau(r) for r in results],
@@ -132,8 +133,8 @@ def reference(observation, seed: int, restarts: int, steps: int, earlier=None) -
         "cpu_seconds": time.process_time() - cpu,
     }
     if earlier is not None:
-        same = ("seed", "steps_per_restart", "cohorts", "instrument_floor")
-        if any(earlier[k] != record[k] for k in same):
+        same = ("seed", "steps_per_restart", "cohorts", "instrument_floor", "realisations")
+        if any(earlier.get(k) != record[k] for k in same):
             raise SystemExit(f"shot {record['shot']}: the stored reference differs in {same}")
         for key in ("draws", "seconds", "cpu_seconds"):
             record[key] += earlier[key]

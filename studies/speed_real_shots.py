@@ -104,6 +104,7 @@ def _run_record(result, seconds, cpu_seconds) -> dict:
         "burn": int(d["burn"]),
         "converged": result.converged,
         "cohorts": result.settings.get("cohorts"),
+        "realisations": result.settings.get("realisations", {}).get("count"),
         "instrument_floor": result.diagnostics.get("instrument_floor"),
         # how far another draw of the discrepancy's realisations moves the quantiles (sd)
         "realisation_spread": result.summary_row()["max_realisation_spread"],
@@ -172,8 +173,11 @@ def write_summary(rows, variants, store: dict, folder) -> dict:
 def compare_with_reference(row: dict, reference: dict) -> None:
     """Add a run's quantile errors against its reference (``error_sd``, ``max_error_sd``)."""
     floor, reference_floor = row["instrument_floor"], reference["instrument_floor"]
-    row["same_posterior_as_reference"] = row["cohorts"] == reference["cohorts"] and (
-        floor == reference_floor or bool(np.isclose(floor, reference_floor, rtol=1e-3))
+    same_count = row.get("realisations") == reference.get("realisations", row.get("realisations"))
+    row["same_posterior_as_reference"] = (
+        row["cohorts"] == reference["cohorts"]
+        and same_count
+        and (floor == reference_floor or bool(np.isclose(floor, reference_floor, rtol=1e-3)))
     )
     row["error_sd"] = agreement(row["reported"], reference["reported"])
     row["reference_error_sd"] = max(reference["reference_error_sd"].values(), default=np.nan)
@@ -185,9 +189,10 @@ def reference_agreement(result, reference: dict) -> dict:
     (:func:`compare_with_reference`): ``same_posterior_as_reference``, ``error_sd``,
     ``max_error_sd`` and the reference's own ``reference_error_sd``."""
     row = {"instrument_floor": result.diagnostics.get("instrument_floor"),
-           "cohorts": result.settings.get("cohorts"), "reported": reported_quantiles(result)}  # fmt: skip
+           "cohorts": result.settings.get("cohorts"), "reported": reported_quantiles(result),
+           "realisations": result.settings.get("realisations", {}).get("count")}  # fmt: skip
     compare_with_reference(row, reference)
-    del row["instrument_floor"], row["cohorts"], row["reported"]
+    del row["instrument_floor"], row["cohorts"], row["reported"], row["realisations"]
     return row
 
 
