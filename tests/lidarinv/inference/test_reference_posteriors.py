@@ -64,6 +64,7 @@ def test_the_store_holds_long_runs_of_both_storey_models_and_instruments():
         assert r["restarts"] >= 2 and r["restarts"] * r["steps_per_restart"] >= 40_000
         assert all(v["sd"] > 0 for v in r["reported"].values())
         assert {"ground_elevation", "top_height", "cover"} <= set(r["reported"])
+        assert r["realisations"] >= 2  # the preparation's count of discrepancy stands
 
 
 @pytest.mark.parametrize("pair", _fastest_shipped("gedi"), ids=lambda pair: str(pair[0].shot_id))
@@ -80,6 +81,7 @@ def test_a_default_gedi_inversion_agrees_with_the_long_runs(pair):
     result = invert_shot(observation, rng=np.random.default_rng(reference["seed"]))
     assert result.converged, result.flags
     assert result.settings["cohorts"] == reference["cohorts"]
+    assert result.settings["realisations"]["count"] == reference["realisations"]
     floor, reference_floor = (
         result.diagnostics.get("instrument_floor"),
         reference["instrument_floor"],
