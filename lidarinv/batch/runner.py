@@ -341,7 +341,14 @@ def _run(source, backend, store, summary, bar, retries) -> None:
             task.attempts += 1
             error = future.exception()
             if error is None:
-                outcome = future.result()
+                try:
+                    outcome = future.result()
+                except Exception as lost:  # it finished, but its result died with its worker
+                    if task.attempts <= retries:
+                        retry.append(task)
+                    else:
+                        fail(task, f"result lost with its worker ({short_reason(lost)})")
+                    continue
                 if outcome.reason == "":
                     try:
                         store.write_done(task.shot_id, outcome.result, index=task.index,

@@ -7,7 +7,7 @@ processes); the real single-shot inversion is not needed.
 import csv
 import json
 import threading
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
 
 import h5py
 import numpy as np
@@ -199,6 +199,43 @@ def test_dask_local_cluster(tmp_path):
     expected = {k: v for k, v in _medians(_csv(local.csv)).items() if k not in summary.failed}
     done = {k: v for k, v in _medians(_csv(summary.csv)).items() if k not in summary.failed}
     assert done == expected
+
+
+class _LosesFirstResult(ThreadPoolExecutor):
+    """A pool whose first shot finishes but whose result is then lost, as a Dask result is
+    when its worker dies between the task's end and the gather."""
+
+    def __init__(self):
+        super().__init__(2)
+        self.lost = 0
+
+    def submit(self, fn, *args, **kwargs):
+        inner = super().submit(fn, *args, **kwargs)
+        if self.lost:
+            return inner
+        self.lost += 1
+        outer = _LostResult()
+        inner.add_done_callback(lambda done: outer.set_result(done.result()))
+        return outer
+
+
+class _LostResult(Future):
+    def result(self, timeout=None):
+        raise RuntimeError("its worker died before the result was gathered")
+
+
+@pytest.mark.parametrize("retries", [0, 1])
+def test_a_result_lost_after_its_shot_finished_is_retried_not_fatal(tmp_path, retries):
+    obs = _observations(3)
+    with _LosesFirstResult() as pool:
+        summary = invert_many(obs, output=tmp_path / "l.h5", executor=pool, invert=fake_invert,
+                              rng=5, progress=False, retries=retries)  # fmt: skip
+    assert summary.n_done + len(summary.failed) == 3
+    if retries:
+        assert summary.n_done == 3 and not summary.failed
+    else:
+        [reason] = summary.failed.values()
+        assert reason.startswith("result lost with its worker")
 
 
 def test_store_refuses_other_settings_and_redoes_half_written_shots(tmp_path):
