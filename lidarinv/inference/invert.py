@@ -307,5 +307,8 @@ def _sample(prepared, rng, sampler, progress, backend) -> InversionResult:
     result.diagnostics.update(prepared.diagnostics())
     resamples = problem.settings.realisations.resamples
     if prepared.discrepancy_draws is not None and resamples:
-        add_realisation_spread(result, problem, prepared.discrepancy_draws, rng, resamples)
+        try:  # a diagnostic: the samples drawn are kept whatever it meets
+            add_realisation_spread(result, problem, prepared.discrepancy_draws, rng, resamples)
+        except (ValueError, np.linalg.LinAlgError) as error:
+            result.flags.append(f"realisation spread not measured: {error}")
     return result

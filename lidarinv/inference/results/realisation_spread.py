@@ -100,6 +100,8 @@ def realisation_spread(
     pick = rng.choice(x.shape[0], size=min(int(samples), x.shape[0]), replace=False)
     terms = log_posterior.evaluate(x[pick], keep_signal=True)
     kept = np.isfinite(terms.log_likelihood)
+    if kept.sum() < 2:
+        return RealisationSpread(dict.fromkeys(columns, np.nan), np.nan)
     pick, signal = pick[kept], terms.signal[kept]
     values = log_posterior.space.values(x[pick])
     likelihood = log_posterior.likelihood
@@ -114,7 +116,10 @@ def realisation_spread(
         fractions.append(np.sum(weights) ** 2 / np.sum(weights**2) / weights.size)
         for name, column in columns.items():
             v = np.asarray(column, float)[pick]
-            finite = np.isfinite(v)
+            finite = np.isfinite(v) & np.isfinite(weights)
+            if finite.sum() < 2 or not np.sum(weights[finite]) > 0:  # nothing to weigh
+                quantiles[name].append(np.full(len(SPREAD_QUANTILES), np.nan))
+                continue
             quantiles[name].append(
                 np.quantile(
                     v[finite],
@@ -125,7 +130,8 @@ def realisation_spread(
             )
     spread = {}
     for name, column in columns.items():
-        sd = np.nanstd(np.asarray(column, float))
+        column = np.asarray(column, float)
+        sd = np.std(column[np.isfinite(column)]) if np.isfinite(column).any() else 0.0
         moved = np.std(quantiles[name], axis=0, ddof=1)
         spread[name] = float(np.max(moved) / sd) if sd > 0 else np.nan
     return RealisationSpread(spread, float(np.min(fractions)))

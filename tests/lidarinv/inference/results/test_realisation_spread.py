@@ -32,11 +32,12 @@ def setting(shot):
     return problem, residuals, x
 
 
-def _spread(problem, residuals, x, seed=0):
+def _spread(problem, residuals, x, seed=0, extra=None):
     draws = DiscrepancyDraws(residuals, 0.3, np.full(residuals.shape[1], 1.0))
     post = problem.log_posterior
     post = post.with_likelihood(post.likelihood.with_fixed_discrepancy(draws.covariance()))
     columns = {name: x[:, problem.space.names.index(name)] for name in ("top_height", "cover")}
+    columns.update(extra or {})
     with one_blas_thread():  # as in an inversion: threaded eigh of small matrices crawls
         return realisation_spread(post, draws, x, columns, np.random.default_rng(seed), 16, 300)
 
@@ -58,6 +59,15 @@ def test_few_realisations_move_the_quantiles_more_than_many(setting):
     few, many = _spread(problem, residuals[:6], x), _spread(problem, residuals, x)
     assert max(few.spread.values()) > 1.5 * max(many.spread.values())
     assert 0.0 < few.weight_fraction < many.weight_fraction <= 1.0
+
+
+def test_a_quantity_without_finite_samples_has_no_spread(setting):
+    """A column the result could not compute (NaN throughout) gets NaN, and the others
+    their spread."""
+    problem, residuals, x = setting
+    found = _spread(problem, residuals, x, extra={"rh98_footprint": np.full(len(x), np.nan)})
+    assert np.isnan(found.spread["rh98_footprint"])
+    assert np.isfinite(found.spread["top_height"]) and np.isfinite(found.spread["cover"])
 
 
 def test_the_spread_needs_two_resamples(setting):
