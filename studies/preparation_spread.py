@@ -47,7 +47,7 @@ def quantile_spread(runs: list) -> dict:
 def stated_spread(runs: list, name: str) -> float:
     """The spread the runs themselves state for a quantity: the realisations' bootstrap
     spread and the sampler's quantile Monte Carlo error added in quadrature, averaged over
-    the runs (NaN where a run stated neither)."""
+    the runs (NaN where a run lacks either)."""
     values = []
     for run in runs:
         parts = [run["realisation_spread"].get(name), run["quantile_mcse"].get(name)]
