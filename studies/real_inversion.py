@@ -42,6 +42,7 @@ from reference_posteriors import STORE as REFERENCE_STORE
 from speed_real_shots import plot_time_vs_error, read_store, reference_agreement
 
 from lidarinv.inference.passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
+from lidarinv.inference.results.realisation_spread import largest_spread
 from lidarinv.io import iter_observations, read_gedi_l2a, read_gedi_l2b, read_lvis_l2
 from lidarinv.observe import Observation, analyse
 
@@ -141,7 +142,7 @@ def invert_one(job):
     record["residual_scale"] = result.diagnostics.get("residual_scale", np.nan)
     record["instrument_floor"] = float(result.diagnostics.get("instrument_floor", np.nan))
     # how far another draw of the discrepancy's realisations moves the quantiles (sd)
-    record["realisation_spread"] = result.summary_row()["max_realisation_spread"]
+    record["realisation_spread"] = largest_spread(result.diagnostics)
     needed = result.diagnostics.get("model_error_needed")
     record["model_error_needed"] = float("nan") if needed is None else float(needed)
     record["misfit"] = any(f.startswith(MISFIT_FLAG) for f in result.flags)

@@ -16,6 +16,7 @@ import harness
 import numpy as np
 
 from lidarinv.inference import invert_shot
+from lidarinv.inference.results.realisation_spread import largest_spread
 from lidarinv.inference.results.reported import REPORTED
 
 #: Quantities whose quantiles are compared with the reference runs: those the stopping
@@ -107,7 +108,7 @@ def _run_record(result, seconds, cpu_seconds) -> dict:
         "realisations": result.settings.get("realisations", {}).get("count"),
         "instrument_floor": result.diagnostics.get("instrument_floor"),
         # how far another draw of the discrepancy's realisations moves the quantiles (sd)
-        "realisation_spread": result.summary_row()["max_realisation_spread"],
+        "realisation_spread": largest_spread(result.diagnostics),
         "quantities": {  # ESS, R̂ and τ of the monitored quantities
             name: {k: v for k, v in q.items()} for name, q in d.get("quantities", {}).items()
         },

@@ -106,6 +106,9 @@ def realisation_spread(
     values = log_posterior.space.values(x[pick])
     likelihood = log_posterior.likelihood
     count = draws.residuals.shape[0]
+    columns = {name: np.asarray(column, float) for name, column in columns.items()}
+    picked = {name: column[pick] for name, column in columns.items()}
+    probabilities = np.array(SPREAD_QUANTILES) / 100
     quantiles = {name: [] for name in columns}
     fractions = []
     for _ in range(int(resamples)):
@@ -114,8 +117,7 @@ def realisation_spread(
         log_ratio = resampled.log_likelihood(signal, values)[0] - terms.log_likelihood[kept]
         weights = np.exp(log_ratio - np.max(log_ratio))
         fractions.append(np.sum(weights) ** 2 / np.sum(weights**2) / weights.size)
-        for name, column in columns.items():
-            v = np.asarray(column, float)[pick]
+        for name, v in picked.items():
             finite = np.isfinite(v) & np.isfinite(weights)
             if finite.sum() < 2 or not np.sum(weights[finite]) > 0:  # nothing to weigh
                 quantiles[name].append(np.full(len(SPREAD_QUANTILES), np.nan))
@@ -123,14 +125,13 @@ def realisation_spread(
             quantiles[name].append(
                 np.quantile(
                     v[finite],
-                    np.array(SPREAD_QUANTILES) / 100,
+                    probabilities,
                     weights=weights[finite],
                     method="inverted_cdf",
                 )
             )
     spread = {}
     for name, column in columns.items():
-        column = np.asarray(column, float)
         sd = np.std(column[np.isfinite(column)]) if np.isfinite(column).any() else 0.0
         moved = np.std(quantiles[name], axis=0, ddof=1)
         spread[name] = float(np.max(moved) / sd) if sd > 0 else np.nan
