@@ -96,3 +96,9 @@ def cohorts(v, family, truncation, tail, mix_index, cohort2_fractions, two_cohor
         top = np.where(capped, cap, 1.0)
         out.append(Cohort(apex, None, top, top, mix, apex > 0))
     return out
+
+
+def narrowest_sd(v) -> np.ndarray:
+    """The smallest height sd (m) of each row's cohorts, for full vectors ``v`` (n,)."""
+    second = np.where(v[:, _I["cohort2_fraction"]] > 0, v[:, _I["cohort2_height_sd"]], np.inf)
+    return np.minimum(v[:, _I["height_sd"]], second)

@@ -14,9 +14,9 @@ from ..crowns import CROWN_SHAPES, SHAPE_NAMES
 from ..height_families import HEIGHT_DISTRIBUTIONS
 from ..pulse import layer_kernel
 from ..stand_params import StandParams
-from .cohorts import Cohort, cohorts
+from .cohorts import Cohort, cohorts, narrowest_sd
 from .depth import groups, tree_depth
-from .grid import clip_keeping_energy, grid_canopy
+from .grid import anchor_period, clip_keeping_energy, grid_canopy, grid_weight
 from .ground import ground_return
 from .interpolation import catmull_rom, grid_operator
 from .settings import (
@@ -330,22 +330,34 @@ class ExpectedWaveformModel:
     def _canopy(self, v):
         """Canopy waveforms before ρv (n, n_bins) and E[P(0)] (n,)."""
         cohorts = self._cohorts(v)
-        top = self._top(cohorts)
         if self._per_cell is None:
-            return self._canopy_edges(v, cohorts, top)
-        # the grid's cubic undershoots slightly below zero (~1e-8 of the canopy energy in
-        # typical stands); rows where it undershoots by more, a canopy much thinner than a
-        # grid cell, take the per-edge path, whose depth is monotone
-        canopy, gap0, redo = self._canopy_grid(v, cohorts, top)
-        if redo.any():
-            again = v[redo]
-            cohorts = self._cohorts(again)
-            canopy[redo], gap0[redo] = self._canopy_edges(again, cohorts, self._top(cohorts))
-            canopy = clip_keeping_energy(canopy, redo)
+            return self._canopy_edges(v, cohorts, self._top(cohorts))
+        # rows of nearly equal heights, which the grid cannot resolve, blend into the
+        # per-edge path of exact depths (grid_weight); so do rows whose cubic undershoots
+        # zero by more than GRID_UNDERSHOOT (~1e-8 of the canopy energy in typical
+        # stands), a canopy much thinner than a grid cell
+        weight = grid_weight(narrowest_sd(v), self._per_cell * self.layer_height)
+        gridded = weight > 0.0
+        canopy, gap0 = np.zeros((v.shape[0], self.heights.size)), np.ones(v.shape[0])
+        if gridded.any():
+            part = cohorts if gridded.all() else self._cohorts(v[gridded])
+            canopy[gridded], gap0[gridded], redo = self._canopy_grid(
+                v[gridded], part, self._top(part)
+            )
+            weight[np.flatnonzero(gridded)[redo]] = 0.0
+        edges = weight < 1.0
+        if edges.any():
+            again, w = v[edges], weight[edges]
+            part = self._cohorts(again)
+            exact, exact_gap0 = self._canopy_edges(again, part, self._top(part), True)
+            canopy[edges] = w[:, None] * canopy[edges] + (1.0 - w[:, None]) * exact
+            gap0[edges] = w * gap0[edges] + (1.0 - w) * exact_gap0
+            canopy = clip_keeping_energy(canopy, edges)
         return canopy, gap0
 
-    def _canopy_edges(self, v, cohorts, top):
-        """E[P] at every fine-layer edge, then the layer kernel as a matrix product."""
+    def _canopy_edges(self, v, cohorts, top, exact=False):
+        """E[P] at every fine-layer edge, then the layer kernel as a matrix product; with
+        ``exact``, the depth itself at every edge (not interpolated from ``depth_nodes``)."""
         g = v[:, _I["ground_elevation"]]
         # only edges that can hold canopy for some row need the tables
         lo_edge = np.searchsorted(self._edges, g.min(), side="right") - 1
@@ -354,7 +366,7 @@ class ExpectedWaveformModel:
         canopy = np.zeros((v.shape[0], self.heights.size))
         z = self._edges[None, lo_edge : hi_edge + 1] - g[:, None]
         z = np.concatenate([np.zeros((v.shape[0], 1)), z], axis=1)
-        p = self._gap(v, z, cohorts)
+        p = self._gap(v, z, cohorts, exact)
         if hi_edge > lo_edge:
             energy = np.diff(p[:, 1:], axis=1)
             canopy = energy @ self._kernel[lo_edge:hi_edge]
@@ -362,7 +374,7 @@ class ExpectedWaveformModel:
 
     def _canopy_grid(self, v, cohorts, top):
         """E[P] on a grid of whole fine layers anchored at or below each row's ground on
-        an edge that is both a bin edge and a grid-cell edge (:meth:`_anchor_period`), so
+        an edge that is both a bin edge and a grid-cell edge (:func:`.grid.anchor_period`), so
         that interpolation, layer energies and the pulse are one constant matrix; each
         row is then shifted by whole bins.
 
@@ -372,7 +384,7 @@ class ExpectedWaveformModel:
         dz = self.instrument.bin_height
         g = v[:, _I["ground_elevation"]]
         step = self._per_cell * self.layer_height
-        period_layers = self._anchor_period()
+        period_layers = anchor_period(self._per_cell, self.oversampling)
         period = period_layers * self.layer_height
         shift = np.floor((g - self._origin) / period) * (period_layers // self.oversampling)
         z0 = self._origin + shift * dz - g  # in (−period, 0]
@@ -396,20 +408,6 @@ class ExpectedWaveformModel:
             scale_u, top_u, self.layer_height, self.heights.size, GRID_UNDERSHOOT,
             backend=self.backend, tables=self._depth_tables,
         )  # fmt: skip
-
-    def _anchor_period(self) -> int:
-        """Fine layers between the grid path's anchors: the least whole number of both grid
-        cells and bins.
-
-        As the ground crosses an anchor, the grid's first node moves down by one period;
-        a period of whole cells maps the grid's nodes onto themselves, so that E[P] between
-        them, interpolated, and the waveform stay continuous in the ground elevation. A
-        period of one bin (the grid's cells five bins thick, say) moved the nodes against
-        the crowns: on a canopy of nearly equal heights the waveform changed by 0.4 % of
-        its peak at a bin edge, a step of 1.6 in an LVIS shot's log-likelihood on which
-        the MAP search's gradients stalled (issue 46).
-        """
-        return int(np.lcm(self._per_cell, self.oversampling))
 
     def _grid_operator(self, nodes):
         """:func:`.interpolation.grid_operator` for ``nodes``, cached."""
@@ -439,19 +437,19 @@ class ExpectedWaveformModel:
         """Tallest tree of any active cohort (m), per row."""
         return np.max([np.where(c.present, c.hi, 0.0) for c in cohorts], axis=0)
 
-    def _gap(self, v, z, cohorts=None):
+    def _gap(self, v, z, cohorts=None, exact=False):
         """E[P] at heights z (n, e) above the ground, for full vectors v (n, …)."""
         z = np.maximum(z, 0.0)
         cohorts = self._cohorts(v) if cohorts is None else cohorts
-        gap = self._tree_gap(v, z, cohorts)
+        gap = self._tree_gap(v, z, cohorts, exact)
         if np.any(v[:, _I["understory_lai"]] > 0):  # it multiplies every column's gap
             gap = gap * np.exp(-self._understory_depth(v, z))
         return gap
 
-    def _tree_gap(self, v, z, cohorts):
+    def _tree_gap(self, v, z, cohorts, exact=False):
         """E[P] of the trees alone at heights z ≥ 0 (n, e)."""
         nodes = self.settings.depth_nodes
-        if nodes is None:
+        if nodes is None or exact:
             gap = np.exp(-self._tree_depth(v, z, cohorts))
         else:  # the depth on a uniform grid from 0 to the tallest tree, then cubic
             top = self._top(cohorts)
