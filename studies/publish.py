@@ -34,6 +34,7 @@ SOURCES = {
     "inversion-speed-real": "inversion_speed{tag}/summary.json",
     "sampling-coordinates-real": "sampling_coordinates{tag}/references.json",
     "preparation-spread": "preparation_spread{tag}/summary.json",
+    "continuity": "continuity{tag}/summary.json",
     "calibration": "recovery{tag}/summary.json",
     "calibration-out-of-family": "recovery{tag}/summary.json",
     "recovery": "recovery{tag}/summary.json",

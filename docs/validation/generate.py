@@ -23,6 +23,7 @@ from .render import (
     render_speed,
 )
 from .render_reference import (
+    render_continuity,
     render_coordinates_vs_reference,
     render_preparation_spread,
     render_time_vs_error,
@@ -46,6 +47,13 @@ PAGES = {
                 "Expected-waveform model against its exact integral",
                 render_generic,
                 "python studies/stand_model_runtime_vs_error.py --quick",
+            ),
+            (
+                "continuity",
+                "Steps in the log-likelihood of real shots",
+                render_continuity,
+                "python studies/continuity.py --data DATA --shots lvis:ID:2 gedi:ID:1 ... "
+                "--tag _TAG",
             ),
         ],
     ),

@@ -1,7 +1,8 @@
 """Sections against long reference runs (``studies/reference_posteriors.py``): real shots'
 time against error (``studies/inversion_speed.py --data``), and sampling coordinates
 compared on the same posteriors (``studies/sampling_coordinates.py --reference-file``);
-and the answer's spread over the seeds that prepare it (``studies/preparation_spread.py``)."""
+the answer's spread over the seeds that prepare it (``studies/preparation_spread.py``); and
+the log-likelihood's steps on real shots (``studies/continuity.py``)."""
 
 from pathlib import Path
 
@@ -175,3 +176,42 @@ def render_preparation_spread(record, figures: Path, key: str) -> str:
     header = ["shot", "stands", "quantity", "spread (sd)", "stated (sd)",
               "of which the stands' (sd)"]  # fmt: skip
     return text + table(header, rows, "per quantity") + "\n" + provenance(record)
+
+
+def render_continuity(record, figures: Path, key: str) -> str:
+    """Per shot, the coordinates whose log-likelihood scans stepped most, now and, where
+    the summary holds it, at the earlier run set beside it."""
+    s = record["summary"]
+    settings = s.get("settings", {})
+    text = (
+        f"Through the MAP and {settings.get('points')} points of its Laplace approximation, "
+        "the log-likelihood of each shot is scanned along every sampled coordinate "
+        f"({settings.get('scan_points')} points over ±{settings.get('half_width')} in "
+        "unbounded units). A *step* is the largest third difference of a scan: near zero "
+        "where the log-likelihood is smooth, the jump itself where it jumps. Steps above "
+        f"{s.get('threshold')} are what a finite-difference gradient or a sampler meets as "
+        "a cliff. *Before* is the same scan at an earlier commit, where the summary holds "
+        "it; each shot's three coordinates with the largest steps, now or before, are "
+        "shown.\n\n"
+    )
+    rows = []
+    for shot in s.get("shots", []):
+
+        def largest(c):
+            return max(c["largest_step"] or 0.0, c.get("largest_step_before") or 0.0)
+
+        worst = sorted(shot["coordinates"], key=largest, reverse=True)[:3]
+        for c in worst:
+            rows.append([
+                shot["instrument"], shot["shot"], shot["cohorts"], literal(c["coordinate"]),
+                c["largest_step"], c.get("largest_step_before"),
+                f"{c['points_past_threshold']}/{c['points_scanned']}",
+            ])  # fmt: skip
+    header = ["instrument", "shot", "storeys", "coordinate", "largest step",
+              "before", "points past the threshold"]  # fmt: skip
+    return (
+        text
+        + table(header, rows, "the three largest steps of each shot")
+        + "\n"
+        + provenance(record)
+    )
