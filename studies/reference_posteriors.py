@@ -44,6 +44,7 @@ from speed_real_shots import (  # noqa: E402
     reported_quantiles,
 )
 
+from forward.expected import NUMERICS_REVISION  # noqa: E402
 from lidarinv.inference import InversionSettings, prepare_problem, sample_prepared  # noqa: E402
 
 #: Default store of the references: test data.
@@ -125,6 +126,7 @@ def reference(observation, seed: int, restarts: int, steps: int, earlier=None) -
         "steps_per_restart": steps,
         "cohorts": prepared.problem.settings.cohorts,
         "realisations": prepared.problem.settings.realisations.count,
+        "numerics_revision": NUMERICS_REVISION,
         "instrument_floor": diagnostics.get("instrument_floor"),
         "draws": int(sum(r.samples.shape[0] for r in results)),
         "largest_tau": [largest_tau(r) for r in results],
@@ -133,7 +135,8 @@ def reference(observation, seed: int, restarts: int, steps: int, earlier=None) -
         "cpu_seconds": time.process_time() - cpu,
     }
     if earlier is not None:
-        same = ("seed", "steps_per_restart", "cohorts", "instrument_floor", "realisations")
+        same = ("seed", "steps_per_restart", "cohorts", "instrument_floor", "realisations",
+                "numerics_revision")  # fmt: skip
         if any(earlier.get(k) != record[k] for k in same):
             raise SystemExit(f"shot {record['shot']}: the stored reference differs in {same}")
         for key in ("draws", "seconds", "cpu_seconds"):

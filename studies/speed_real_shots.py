@@ -15,6 +15,7 @@ from pathlib import Path
 import harness
 import numpy as np
 
+from forward.expected import NUMERICS_REVISION
 from lidarinv.inference import invert_shot
 from lidarinv.inference.results.realisation_spread import largest_spread
 from lidarinv.inference.results.reported import REPORTED
@@ -175,9 +176,12 @@ def compare_with_reference(row: dict, reference: dict) -> None:
     """Add a run's quantile errors against its reference (``error_sd``, ``max_error_sd``)."""
     floor, reference_floor = row["instrument_floor"], reference["instrument_floor"]
     same_count = row.get("realisations") == reference.get("realisations", row.get("realisations"))
+    # records without a revision predate it: revision 1
+    same_model = reference.get("numerics_revision", 1) == NUMERICS_REVISION
     row["same_posterior_as_reference"] = (
         row["cohorts"] == reference["cohorts"]
         and same_count
+        and same_model
         and (floor == reference_floor or bool(np.isclose(floor, reference_floor, rtol=1e-3)))
     )
     row["error_sd"] = agreement(row["reported"], reference["reported"])

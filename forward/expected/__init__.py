@@ -77,7 +77,7 @@ Applications*, 3rd ed., Wiley, Sec. 2.4 (the probability generating functional).
 """
 
 from .model import ExpectedWaveformModel
-from .settings import CONVERGED, ExpectedWaveforms, ModelSettings
+from .settings import CONVERGED, NUMERICS_REVISION, ExpectedWaveforms, ModelSettings
 from .vectors import (
     CONDITIONING_FIELDS,
     DEFAULT_FREE,
@@ -95,6 +95,7 @@ __all__ = [
     "DEFAULT_FREE",
     "FIELD_INDEX",
     "MIX_FIELDS",
+    "NUMERICS_REVISION",
     "VECTOR_FIELDS",
     "ExpectedWaveformModel",
     "ExpectedWaveforms",

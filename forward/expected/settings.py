@@ -60,6 +60,12 @@ GRID_BLEND_SD_CELLS = (1.0, 2.0)
 #: canopy, so that a row's samples do not depend on the other rows of its batch.
 GRID_MARGIN_CELLS = 2
 
+#: Revision of the model's numerics: a posterior stored with another (the long reference
+#: runs of ``studies/reference_posteriors.py``) is that of a slightly different model.
+#: 2: the grid path continuous in the ground elevation, exact depths for cohorts of
+#: nearly one height (issue 46).
+NUMERICS_REVISION = 2
+
 #: Settings taken as converged (the reference of the benchmark and the convergence test).
 CONVERGED = ModelSettings(radial_nodes=48, height_nodes=1024, tail=1e-9, depth_nodes=None)
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from forward.expected import NUMERICS_REVISION
 from lidarinv.inference import invert_shot
 from lidarinv.io import example_file, iter_observations
 from lidarinv.observe import Observation
@@ -82,6 +83,7 @@ def test_a_default_gedi_inversion_agrees_with_the_long_runs(pair):
     assert result.converged, result.flags
     assert result.settings["cohorts"] == reference["cohorts"]
     assert result.settings["realisations"]["count"] == reference["realisations"]
+    assert reference.get("numerics_revision", 1) == NUMERICS_REVISION  # the same model
     floor, reference_floor = (
         result.diagnostics.get("instrument_floor"),
         reference["instrument_floor"],
