@@ -28,6 +28,11 @@ TOLERANCE_SD = 0.2
 #: Largest Monte Carlo error of a reference's own quantiles (the restarts' sd about each
 #: other over √restarts), in posterior sd: half the tolerance.
 REFERENCE_ERROR_SD = 0.5 * TOLERANCE_SD
+#: Standard errors a quantile may lie from the reference's where the run's stated error
+#: exceeds the tolerance's share: eight quantities' three quantiles are 24 comparisons,
+#: and an error beyond three standard errors in one of them has a family-wise probability
+#: of about 6 % where every stated error is right; beyond four, 0.15 %.
+STATED_ERRORS = 4.0
 
 
 def _fastest_shipped(instrument):
@@ -74,9 +79,9 @@ def test_a_default_gedi_inversion_agrees_with_the_long_runs(pair):
     same stand model and model error from the same seed) and reports every quantity's
     5/50/95 % quantiles within 0.2 posterior sd of the long runs', or, where the run's own
     quantile Monte Carlo error says it is less certain than that (a heavy tail's 95 %
-    quantile: the rule stops on ESS, not on that error), within three times that error:
-    the run's stated error must hold. The reference is known to better than half the
-    tolerance (its restarts' spread), so that the comparison can tell."""
+    quantile: the rule stops on ESS, not on that error), within :data:`STATED_ERRORS` times
+    that error: the run's stated error must hold. The reference is known to better than
+    half the tolerance (its restarts' spread), so that the comparison can tell."""
     observation, reference = pair
     assert max(reference["reference_error_sd"].values()) <= REFERENCE_ERROR_SD
     result = invert_shot(observation, rng=np.random.default_rng(reference["seed"]))
@@ -95,7 +100,7 @@ def test_a_default_gedi_inversion_agrees_with_the_long_runs(pair):
     quantities = result.diagnostics["quantities"]
     stated = {n: quantities.get(n, {}).get("quantile_mcse") for n in errors}
     stated = {n: 0.0 if v is None else float(np.nan_to_num(v)) for n, v in stated.items()}
-    beyond = {n: e for n, e in errors.items() if e > max(TOLERANCE_SD, 3 * stated[n])}
+    beyond = {n: e for n, e in errors.items() if e > max(TOLERANCE_SD, STATED_ERRORS * stated[n])}
     assert not beyond, (errors, stated)
 
 
