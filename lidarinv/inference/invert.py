@@ -200,6 +200,9 @@ def _prepare(observation, settings, rng) -> Preparation:
     else:
         problem, estimate = build_problem(observation, settings), None
         prepared = Preparation(problem)
+    realisations = problem.settings.realisations.for_cohorts(problem.settings.cohorts)
+    if realisations != problem.settings.realisations:  # the result records the count used
+        problem = replace(problem, settings=replace(problem.settings, realisations=realisations))
     settings = problem.settings
     hidden = hidden_ground_note(problem.shot)
     if hidden is not None:

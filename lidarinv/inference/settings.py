@@ -7,7 +7,7 @@ priors file holds, beside the parameters' priors, tables that set some of these
 (:data:`.priors_file.SETTINGS_TABLES`: ``[favd]``, ``[ground]``, ``[discrepancy]``).
 """
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 from forward.expected import ModelSettings
 from forward.explicit import AccuracySettings
@@ -61,6 +61,13 @@ class RealisationSettings:
         Bootstrap resamples of the realisations with which the result measures how far
         another draw of them would move its quantiles (:mod:`.results.realisation_spread`,
         about 30 ms each); 0 for none.
+    two_cohort_factor : int
+        A two-cohort stand model simulates ``count`` times this many realisations
+        (:meth:`for_cohorts`). Its discrepancy varies more: under the tall, closed
+        two-storey canopies of the tall LVIS line, 256 realisations left the answer moving
+        by 0.63 posterior sd (median of eight shots) over resamples of them, where GEDI
+        shots moved by 0.01 and one-storey LVIS shots by about 0.3; the spread falls as
+        one over the square root of the count.
     """
 
     count: int = 256
@@ -70,6 +77,7 @@ class RealisationSettings:
     accuracy: AccuracySettings = DISCREPANCY_QUADRATURE
     instrument_floor: float = 0.1
     resamples: int = 16
+    two_cohort_factor: int = 4
 
     def __post_init__(self):
         if not self.instrument_floor >= 0.0:
@@ -82,6 +90,25 @@ class RealisationSettings:
             raise ValueError(f"shrinkage must lie in [0, 1], got {self.shrinkage}")
         if not (self.ball > 0 and self.plot_diameters > 0):
             raise ValueError("ball and plot_diameters must be positive")
+        if not (isinstance(self.two_cohort_factor, int) and self.two_cohort_factor >= 1):
+            factor = self.two_cohort_factor
+            raise ValueError(f"two_cohort_factor must be an integer ≥ 1, got {factor}")
+
+    def for_cohorts(self, cohorts) -> "RealisationSettings":
+        """These settings for a stand model of ``cohorts`` height cohorts: with two, the
+        count multiplied by :attr:`two_cohort_factor`.
+
+        Parameters
+        ----------
+        cohorts : int
+
+        Returns
+        -------
+        RealisationSettings
+        """
+        if cohorts == 2 and self.two_cohort_factor > 1:
+            return replace(self, count=self.count * self.two_cohort_factor)
+        return self
 
 
 @dataclass(frozen=True)

@@ -191,6 +191,23 @@ def test_the_instrument_floor_adds_the_observed_per_bin_variance_to_the_covarian
     np.testing.assert_allclose(added - np.diag(np.diag(added)), 0.0, atol=1e-9)
 
 
+def test_a_two_cohort_model_simulates_more_realisations_and_records_them(shot):
+    """Two cohorts simulate ``count × two_cohort_factor`` stands, one cohort ``count``,
+    and the prepared problem's settings (which the result records) say how many."""
+    from lidarinv.inference.invert import prepare_problem
+
+    base = RealisationSettings(count=6, two_cohort_factor=2, resamples=0)
+    assert base.for_cohorts(1) == base and base.for_cohorts(2).count == 12
+    with pytest.raises(ValueError, match="two_cohort_factor"):
+        RealisationSettings(two_cohort_factor=0)
+    quick = SamplerSettings(candidates=64, starts=2, polish=1)
+    for cohorts, count in ((1, 6), (2, 12)):
+        settings = InversionSettings(realisations=base, sampler=quick, cohorts=cohorts)
+        prepared = prepare_problem(shot, settings, np.random.default_rng(5))
+        assert prepared.problem.settings.realisations.count == count
+        assert prepared.discrepancy_draws.residuals.shape[0] == count
+
+
 def test_realisations_scatter_about_the_expected_waveform(problems, shot, rng):
     """The mean of many explicit residuals at the truth is small against their spread,
     which is largest in the canopy and near zero far above it."""
