@@ -24,7 +24,9 @@ class ModelSettings:
         ``None``: evaluate the tree optical depth at every fine-layer edge. An integer:
         evaluate E[P] on about that many heights from 0 to the template's tallest tree
         (a step of whole fine layers) and interpolate to the edges by Catmull–Rom: much
-        cheaper, and smooth because the depth is already averaged over the heights.
+        cheaper, and smooth because the depth is already averaged over the heights. Rows
+        whose heights are too nearly equal for that (:data:`GRID_BLEND_SD_CELLS`) take
+        exact depths.
     max_elements : int
         Rows are processed in chunks so that no work array exceeds this many elements.
     backend : str
