@@ -228,17 +228,20 @@ def compare_with_tau_rule(rows, shot_id):
 
 def variant_table(rows, variants) -> dict:
     """Per variant and instrument: median CPU and wall seconds, the share converged, and
-    the median and largest quantile error (reference sd)."""
+    the median and largest quantile error (reference sd) over the runs that sampled their
+    reference's posterior (``same_posterior_as_reference`` not False; ``compared``)."""
     out = {}
     for name in variants:
         for instrument in sorted({r["instrument"] for r in rows}):
             picked = [r for r in rows if r["variant"] == name and r["instrument"] == instrument]
             if not picked:
                 continue
-            errors = [r.get("max_error_sd", np.nan) for r in picked]
+            same = [r for r in picked if r.get("same_posterior_as_reference") is not False]
+            errors = [r.get("max_error_sd", np.nan) for r in same] or [np.nan]
             against_tau = [r.get("max_error_vs_tau_sd", np.nan) for r in picked]
             out[f"{name} {instrument}"] = {
                 "shots": len(picked),
+                "compared": len(same),
                 "median_cpu_seconds": float(np.median([r["cpu_seconds"] for r in picked])),
                 "median_seconds": float(np.median([r["seconds"] for r in picked])),
                 "converged_fraction": float(np.mean([r["converged"] for r in picked])),

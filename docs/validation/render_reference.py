@@ -23,25 +23,29 @@ def render_time_vs_error(record, figures: Path, key: str) -> str:
         "reference's posterior sd; the target is 0.2 (issue 46). The reference's own error "
         "is its restarts' spread over √restarts, the largest over the quantities. A variant "
         "ending in -seed+K was prepared with the reference's seed plus K: its error also "
-        "holds what another MAP search and another set of discrepancy realisations move.\n\n"
+        "holds what another MAP search and another set of discrepancy realisations move. "
+        "*Same posterior* is no where the reference was sampled with another stand model, "
+        "count of realisations, model error or revision of the model's numerics: the error "
+        "then holds the change of model, and the variants' errors leave such runs out.\n\n"
     )
     rows = [
-        [name, v["shots"], v["median_cpu_seconds"], v["converged_fraction"],
-         v["median_max_error_sd"], v["max_error_sd"]]
+        [name, v["shots"], v.get("compared", v["shots"]), v["median_cpu_seconds"],
+         v["converged_fraction"], v["median_max_error_sd"], v["max_error_sd"]]
         for name, v in s.get("variants", {}).items()
     ]  # fmt: skip
-    header = ["variant, instrument", "shots", "median CPU (s)", "stopped on the rule",
-              "median error (sd)", "largest error (sd)"]  # fmt: skip
+    header = ["variant, instrument", "shots", "compared", "median CPU (s)",
+              "stopped on the rule", "median error (sd)", "largest error (sd)"]  # fmt: skip
     text += table(header, rows) + "\n"
     shots = s.get("shots", [])
     rows = [
         [r["instrument"], r["shot"], r["variant"], r.get("cohorts"), r["cpu_seconds"],
-         r["steps"], r["converged"], r.get("max_error_sd"), _worst(r.get("error_sd", {})),
-         r.get("reference_error_sd")]
+         r["steps"], r["converged"], r.get("same_posterior_as_reference"),
+         r.get("max_error_sd"), _worst(r.get("error_sd", {})), r.get("reference_error_sd")]
         for r in shots
     ]  # fmt: skip
     header = ["instrument", "shot", "variant", "storeys", "CPU (s)", "steps", "stopped on the rule",
-              "error (sd)", "worst quantity", "reference's own error (sd)"]  # fmt: skip
+              "same posterior", "error (sd)", "worst quantity",
+              "reference's own error (sd)"]  # fmt: skip
     text += table(header, rows, "runs") + "\n"
     figure = _figure(shots, figures / f"{key}.png")
     if figure:
