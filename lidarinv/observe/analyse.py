@@ -89,7 +89,9 @@ class ShotAnalysis:
         weaker); ``ground_level`` is the significance level it was held to.
     ground_alternative, ground_alternative_evidence : float (m), float
         The other plausible ground and its evidence (NaN where there is none); with
-        the flag "ground ambiguous" when it is a plausible return below the chosen one.
+        the flag "ground ambiguous" when it is a plausible return below the chosen one,
+        or the lowest mode above a chosen return that is significant but not
+        confidently so (:func:`lidarinv.observe.ground_candidates.choose_ground`).
     canopy_height : float (m)
         Signal start above the ground (RH100).
     rh : array (m) or None

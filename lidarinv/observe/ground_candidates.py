@@ -23,7 +23,10 @@ Both are compared with a one-sided Gaussian level (:func:`significance_sigmas`) 
 the false-alarm probability of the whole search at ``FALSE_ALARM`` (Bonferroni over the
 independent pulse-wide windows searched). A candidate that reaches the level of the
 search at ``PLAUSIBLE_FALSE_ALARM`` but not at ``FALSE_ALARM`` is *plausible*: it is
-reported as the alternative ground and the shot is flagged ambiguous.
+reported as the alternative ground and the shot is flagged ambiguous. Symmetrically, a
+candidate chosen below the lowest mode that reaches the level at ``FALSE_ALARM`` but not
+at ``CONFIDENT_FALSE_ALARM`` may still be noise: the lowest mode is then the alternative
+and the shot is flagged ambiguous, so that the inversion's ground prior holds both.
 """
 
 from dataclasses import dataclass
@@ -41,6 +44,10 @@ FALSE_ALARM = 0.01
 #: below the chosen ground that the search would find in noise alone more often than
 #: ``FALSE_ALARM`` but seldom is reported as the alternative and flags the shot.
 PLAUSIBLE_FALSE_ALARM = 0.1
+#: The same probability for a *confident* choice (one in a thousand shots): a candidate
+#: chosen below the lowest mode whose evidence reaches the level at ``FALSE_ALARM`` but not
+#: at this one keeps the lowest mode as a plausible ground (:func:`choose_ground`).
+CONFIDENT_FALSE_ALARM = 0.001
 
 
 @dataclass(frozen=True)
@@ -84,6 +91,13 @@ def significance_sigmas(n_trials: float, false_alarm: float = FALSE_ALARM) -> fl
     52–64 (the Bonferroni bound on a family's false-alarm rate).
     """
     return float(norm.isf(false_alarm / max(float(n_trials), 1.0)))
+
+
+def rescaled_level(level: float, false_alarm: float, base: float = FALSE_ALARM) -> float:
+    """The level of the same search at another false-alarm probability: ``level`` holds
+    it at ``base``, and the Bonferroni count of trials cancels,
+    z' = Φ⁻¹(1 − Φ̄(level)·false_alarm/base)."""
+    return float(norm.isf(norm.sf(level) * false_alarm / base))
 
 
 def window_sum_sigma(noise, n_bins: int) -> float:
@@ -262,7 +276,8 @@ class GroundChoice:
         The lowest significant candidate; the plausible candidate below it, or else the
         lowest mode where a candidate below it was chosen (``None`` if neither).
     ambiguous : bool
-        A plausible but not significant candidate lies below the chosen one.
+        A plausible but not significant candidate lies below the chosen one, or the
+        chosen one, below the lowest mode, is significant but not confidently so.
     level, plausible_level : float
         Significance levels (σ) of the search and of a plausible alternative.
     """
@@ -287,8 +302,11 @@ def choose_ground(
     prominent one, it may as well be that mode's own broadened return (a sloped or rough
     ground spreads its return over metres), so the mode is chosen and the shoulder is
     the alternative. Where a candidate below the chosen one reaches ``plausible_level``
-    but not ``level``, it is the alternative. Either way the choice is ambiguous.
-    Candidates of other ``kinds`` than those the instrument's product resolves are left
+    but not ``level``, it is the alternative. Either way the choice is ambiguous. So is a
+    candidate chosen below the lowest mode whose evidence reaches ``level`` but not the
+    level at :data:`CONFIDENT_FALSE_ALARM` (:func:`rescaled_level`): a search finds such a
+    candidate in noise alone about once in a hundred shots, so the lowest mode stays a
+    plausible ground (its alternative). Candidates of other ``kinds`` than those the instrument's product resolves are left
     out (GEDI L2A resolves modes only).
     """
     candidates = [c for c in candidates[:-1] if c.kind in kinds] + [candidates[-1]]
@@ -305,5 +323,7 @@ def choose_ground(
         alternative = below[-1] if below else None
     if alternative is not None:
         return GroundChoice(chosen, alternative, True, level, plausible_level)
-    alternative = candidates[last] if chosen_at != last else None
-    return GroundChoice(chosen, alternative, False, level, plausible_level)
+    if chosen_at == last:
+        return GroundChoice(chosen, None, False, level, plausible_level)
+    marginal = chosen.evidence() < rescaled_level(level, CONFIDENT_FALSE_ALARM)
+    return GroundChoice(chosen, candidates[last], marginal, level, plausible_level)

@@ -7,7 +7,9 @@ from closed_canopy import GROUND_Z, LVIS_NOISE_FILTER, closed_canopy, closed_can
 from lidarinv.observe import analyse, estimate_noise
 from lidarinv.observe.ground_candidates import (
     GroundCandidate,
+    CONFIDENT_FALSE_ALARM,
     choose_ground,
+    rescaled_level,
     significance_sigmas,
     window_sum_sigma,
 )
@@ -62,6 +64,28 @@ def test_lowest_significant_candidate_is_chosen():
     choice = choose_ground([_candidate(1.0), _candidate(5.0), _candidate(9.0)], 3.3, 2.7)
     assert choice.chosen.position == 1.0 and not choice.ambiguous
     assert choice.alternative.position == 9.0  # the lowest prominent mode, reported
+
+
+def test_rescaled_level_is_the_same_search_at_another_false_alarm():
+    for trials in (1, 12, 80):
+        level = significance_sigmas(trials)
+        assert rescaled_level(level, CONFIDENT_FALSE_ALARM) == pytest.approx(
+            significance_sigmas(trials, CONFIDENT_FALSE_ALARM), rel=1e-9
+        )
+
+
+def test_barely_significant_return_below_the_mode_keeps_the_mode_plausible():
+    """A return that passes the 1 % level by a hair is as likely a noise excursion as a
+    ground: the lowest mode stays the alternative and the choice is ambiguous; one that
+    passes the 0.1 % level is chosen outright."""
+    level = 3.3
+    confident = rescaled_level(level, CONFIDENT_FALSE_ALARM)
+    assert confident > level + 0.5
+    for energy, ambiguous in ((level + 0.1, True), (confident + 0.1, False)):
+        choice = choose_ground([_candidate(1.0, energy=energy), _candidate(9.0)], level, 2.7)
+        assert choice.chosen.position == 1.0
+        assert choice.alternative.position == 9.0
+        assert choice.ambiguous is ambiguous
 
 
 def test_shoulder_below_a_weaker_mode_leaves_the_choice_ambiguous():
