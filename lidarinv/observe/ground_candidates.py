@@ -306,8 +306,8 @@ def choose_ground(
     candidate chosen below the lowest mode whose evidence reaches ``level`` but not the
     level at :data:`CONFIDENT_FALSE_ALARM` (:func:`rescaled_level`): a search finds such a
     candidate in noise alone about once in a hundred shots, so the lowest mode stays a
-    plausible ground (its alternative). Candidates of other ``kinds`` than those the instrument's product resolves are left
-    out (GEDI L2A resolves modes only).
+    plausible ground (its alternative). Candidates of other ``kinds`` than those the
+    instrument's product resolves are left out (GEDI L2A resolves modes only).
     """
     candidates = [c for c in candidates[:-1] if c.kind in kinds] + [candidates[-1]]
     last = len(candidates) - 1

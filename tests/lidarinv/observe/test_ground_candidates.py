@@ -6,8 +6,8 @@ from closed_canopy import GROUND_Z, LVIS_NOISE_FILTER, closed_canopy, closed_can
 
 from lidarinv.observe import analyse, estimate_noise
 from lidarinv.observe.ground_candidates import (
-    GroundCandidate,
     CONFIDENT_FALSE_ALARM,
+    GroundCandidate,
     choose_ground,
     rescaled_level,
     significance_sigmas,
