@@ -266,7 +266,8 @@ class Shot:
             sds), truncated beyond both;
             ``gain``: log-uniform over a factor 20 either side of the window's energy
             above b̂; ``baseline``: uniform b̂ ± 5σ̂; ``noise_sigma``: log-uniform
-            [σ̂/3, 3σ̂]; ``top_height``: uniform up to where the canopy leaves the window.
+            [σ̂/3, 3σ̂]; ``top_height``: uniform up to where the canopy leaves the window
+            over the higher of the grounds.
 
         Raises
         ------
@@ -285,14 +286,16 @@ class Shot:
         if not (np.isfinite(g_sd) and g_sd > 0):
             raise ValueError(f"ground_prior_sd_m must be positive, got {ground_prior_sd_m}")
         g_width = max(6.0 * g_sd, pulse_high - pulse_low)
-        # the canopy must fit inside the window, so that empty bins above it constrain it
-        room = window.axis[-1] - g - pulse_high
+        alternative = self.alternative_ground()
+        # the canopy must fit inside the window over either ground, so that empty bins
+        # above it constrain it
+        highest = g if alternative is None else max(g, alternative[0])
+        room = window.axis[-1] - highest - pulse_high
         if room <= top_range[0] + 1.0:
             raise ValueError(
                 f"shot {self.observation.shot_id}: the window leaves no room above the ground"
             )
         ground_prior = TruncatedNormal(g, g_sd, g - g_width, g + g_width)
-        alternative = self.alternative_ground()
         if alternative is not None:
             alt, alt_sd = alternative[0], max(alternative[1], g_sd)
             alt_width = max(6.0 * alt_sd, pulse_high - pulse_low)

@@ -76,6 +76,20 @@ def test_an_ambiguous_shot_takes_both_grounds_into_its_prior(shot):
     assert density[0] > 100 * density[2] and density[1] > 100 * density[2]
 
 
+def test_a_mode_above_a_marginal_ground_enters_the_prior_and_bounds_the_canopy(shot):
+    """Where the chosen ground is a marginal return below the lowest mode, the mode is the
+    alternative: the prior reaches it, and the canopy stays inside the window over it."""
+    plain = shot.nuisance_priors()
+    priors = _ambiguous(shot, -3.0).nuisance_priors()
+    prior = priors["ground_elevation"]
+    assert prior.alt_mean == pytest.approx(shot.ground + 3.0)
+    assert (
+        prior.upper > prior.alt_mean + 3 * prior.alt_sd
+        and prior.lower <= plain["ground_elevation"].lower
+    )
+    assert priors["top_height"].upper == pytest.approx(plain["top_height"].upper - 3.0)
+
+
 def test_the_window_reaches_below_the_alternative_ground(shot, monkeypatch):
     """The likelihood must see the lower return for the data to weigh it."""
     import lidarinv.inference.shot as shot_module
