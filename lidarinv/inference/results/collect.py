@@ -8,7 +8,7 @@ from lidarinv.observe import processing_settings
 from ..model.parameters import TALLEST_STEM
 from ..model.tallest_stem import disc_area
 from ..model.waveform import RH_LEVELS, relative_heights
-from ..passes.ambiguity import describe_modes, ground_modes
+from ..passes.ambiguity import describe_modes, ground_modes, pulse_width_m
 from ..passes.realisations import footprint_cover
 from ..posterior import BLOB_NAMES, BLOB_UNITS
 from ..problem import InversionProblem
@@ -16,6 +16,7 @@ from ..sampling.sampler import SamplerRun
 from .footprint import (
     FOOTPRINT_BARE,
     FOOTPRINT_NO_STEM,
+    canopy_height_note,
     excess_sigmas,
     footprint_bare,
     footprint_no_stem,
@@ -23,7 +24,7 @@ from .footprint import (
 from .local_misfit import describe_local_misfit, local_misfit, return_width_bins
 from .prior_learning import prior_learning, support_prior_draws
 from .product_metrics import product_relative_heights
-from .result import QUANTILES, InversionResult
+from .result import QUANTILES, InversionResult, seen_canopy_height
 
 #: Posterior samples used for the predictive band and the crown-volume profile.
 _BAND_SAMPLES = 400
@@ -242,6 +243,10 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     seen = heights["rh98_footprint"]  # the footprint's own waveform, else the model's
     seen = seen if np.isfinite(seen).any() else derived["rh98"]
     derived[FOOTPRINT_BARE] = footprint_bare(problem, x, seen, canopy_sigmas)
+    height_note = canopy_height_note(
+        seen_canopy_height(derived[FOOTPRINT_TOP], derived), seen,
+        pulse_width_m(problem.instrument.pulse),
+    )  # fmt: skip
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
     terms = post.evaluate(x[pick], keep_signal=True)
     good = np.isfinite(terms.log_posterior)
@@ -324,7 +329,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
         + post.likelihood.notes
         + _misfit_flags(fit)
         + describe_local_misfit(fit)
-        + [flag for flag in [describe_modes(modes)] if flag],
+        + [flag for flag in [describe_modes(modes), height_note] if flag],
         profile_heights=profile_heights,
         profile=np.percentile(profile, QUANTILES, axis=0),
         axis=problem.window.axis,

@@ -232,3 +232,56 @@ def footprint_no_stem(problem: InversionProblem, density_per_ha) -> np.ndarray:
         return np.zeros(np.shape(density_per_ha))
     area = disc_area(problem.instrument.footprint_sigma_m)
     return np.exp(-np.asarray(density_per_ha, float) * 1e-4 * area)
+
+
+#: Share of the posterior's draws above which the result says that the footprint's canopy
+#: height and its own waveform's RH98 disagree (:func:`canopy_height_note`).
+DISAGREEING_SHARE = 0.5
+
+
+def canopy_height_note(canopy_height, rh98, tolerance_m: float) -> str | None:
+    """The result's flag where most draws put the footprint's canopy height well below the
+    RH98 of the draw's own waveform; None where they agree.
+
+    Parameters
+    ----------
+    canopy_height : array (n,) (m)
+        The footprint's canopy height per draw (:func:`.result.seen_canopy_height`): its
+        tallest stem within the 1/e² disc, drawn from the draw's stand.
+    rh98 : array (n,) (m)
+        RH98 of each draw's own footprint waveform (``rh98_footprint``).
+    tolerance_m : float (m)
+        How far the stem may stand below the RH98 and still agree: a pulse width
+        (:func:`.passes.ambiguity.pulse_width_m`), by which the pulse spreads the canopy's
+        top return upward.
+
+    Returns
+    -------
+    str or None
+        The flag where more than :data:`DISAGREEING_SHARE` of the draws with both values
+        hold a stem more than ``tolerance_m`` below their RH98.
+
+    Notes
+    -----
+    The tallest stem is drawn from the stand's law on the disc, not conditioned on this
+    footprint's waveform, while the waveform sees every crown over the disc, and a wide
+    crown reaches into it from a stem standing up to a crown radius outside. Where a tall
+    storey is sparse (under one stem a disc) and its crowns wide, as in tall tropical
+    forest, the draw then often holds only the lower storey's stems, and the canopy height
+    falls far below the top the waveform shows.
+    """
+    h, r = np.asarray(canopy_height, float), np.asarray(rh98, float)
+    both = np.isfinite(h) & np.isfinite(r)
+    if not both.any():
+        return None
+    short = float(np.mean(h[both] < r[both] - tolerance_m))
+    if short <= DISAGREEING_SHARE:
+        return None
+    return (
+        f"canopy height below the waveform's RH98: in {short:.0%} of draws the tallest stem "
+        f"within the footprint's disc stands more than {tolerance_m:.1f} m (a pulse width) "
+        f"below the RH98 of the draw's own waveform (medians {np.median(h[both]):.1f} m and "
+        f"{np.median(r[both]):.1f} m); the stem is drawn from the stand, not from this "
+        "waveform, and wide crowns reach into the disc from stems outside it: take "
+        "rh98_footprint as the canopy's top"
+    )

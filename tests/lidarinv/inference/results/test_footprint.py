@@ -12,7 +12,11 @@ from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, build_problem, invert_shot
 from lidarinv.inference.model.tallest_stem import disc_area
 from lidarinv.inference.results.collect import footprint_top_height
-from lidarinv.inference.results.footprint import bare_ground_rh98, footprint_no_stem
+from lidarinv.inference.results.footprint import (
+    bare_ground_rh98,
+    canopy_height_note,
+    footprint_no_stem,
+)
 from lidarinv.inference.sampling import SamplerSettings
 from lidarinv.observe.observation import Observation
 
@@ -157,3 +161,22 @@ def test_the_headline_height_is_zero_where_the_waveform_sees_no_canopy():
     assert row["footprint_no_canopy_probability"] == pytest.approx(canopy["none_probability"])
     assert row["footprint_height_median"] == 0.0
     assert headline(result).splitlines()[1].split()[:3] == ["canopy", "height", "0"]
+
+
+def test_a_sparse_tall_storey_missing_from_the_disc_is_flagged():
+    """Half a tall stem a disc over many short ones: most draws of the disc's tallest stem
+    are short while every draw's waveform shows the tall crowns (RH98 44 m): the canopy
+    height contradicts the waveform, and the result says so. A stand whose tallest stem
+    sits near its waveform's RH98, and a bare footprint, are not flagged."""
+    rng = np.random.default_rng(0)
+    n = 4000
+    tall_in_disc = rng.poisson(0.5, n) > 0
+    tallest = np.where(tall_in_disc, rng.normal(45.0, 1.0, n), rng.normal(10.0, 0.7, n))
+    rh98 = rng.normal(44.0, 0.5, n)
+    note = canopy_height_note(tallest, rh98, tolerance_m=2.3)
+    assert note is not None and "61% of draws" in note and "rh98_footprint" in note
+    one_storey = rng.normal(44.5, 1.0, n)
+    assert canopy_height_note(one_storey, rh98, tolerance_m=2.3) is None
+    bare = np.zeros(n)  # no canopy seen: RH98 is the bare ground's, a pulse high
+    assert canopy_height_note(bare, np.full(n, 1.2), tolerance_m=2.3) is None
+    assert canopy_height_note(np.full(n, np.nan), rh98, tolerance_m=2.3) is None
