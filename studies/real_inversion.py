@@ -42,6 +42,7 @@ from reference_posteriors import STORE as REFERENCE_STORE
 from speed_real_shots import plot_time_vs_error, read_store, reference_agreement
 
 from lidarinv.inference.passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
+from lidarinv.inference.results.footprint import CANOPY_HEIGHT_FLAG
 from lidarinv.inference.results.realisation_spread import largest_spread
 from lidarinv.io import iter_observations, read_gedi_l2a, read_gedi_l2b, read_lvis_l2
 from lidarinv.observe import Observation, analyse
@@ -231,6 +232,10 @@ def statistics(records, instrument) -> dict:
         "contradictions_unflagged": _contradictions(done),
         "model_error_raised": int(
             sum(any(f.startswith(MODEL_ERROR_FLAG) for f in r["flags"]) for r in done)
+        ),
+        # the footprint's tallest stem far below its own waveform's RH98 in most draws
+        "canopy_height_below_rh98": int(
+            sum(any(f.startswith(CANOPY_HEIGHT_FLAG) for f in r["flags"]) for r in done)
         ),
         "median_instrument_floor": _percentile_of(done, "instrument_floor", 50),
         # per parameter, the shots whose posterior stayed at its prior (records made

@@ -234,6 +234,8 @@ def footprint_no_stem(problem: InversionProblem, density_per_ha) -> np.ndarray:
     return np.exp(-np.asarray(density_per_ha, float) * 1e-4 * area)
 
 
+#: How the result's flag of :func:`canopy_height_note` begins.
+CANOPY_HEIGHT_FLAG = "canopy height below the waveform's RH98"
 #: Share of the posterior's draws above which the result says that the footprint's canopy
 #: height and its own waveform's RH98 disagree (:func:`canopy_height_note`).
 DISAGREEING_SHARE = 0.5
@@ -278,7 +280,7 @@ def canopy_height_note(canopy_height, rh98, tolerance_m: float) -> str | None:
     if short <= DISAGREEING_SHARE:
         return None
     return (
-        f"canopy height below the waveform's RH98: in {short:.0%} of draws the tallest stem "
+        f"{CANOPY_HEIGHT_FLAG}: in {short:.0%} of draws the tallest stem "
         f"within the footprint's disc stands more than {tolerance_m:.1f} m (a pulse width) "
         f"below the RH98 of the draw's own waveform (medians {np.median(h[both]):.1f} m and "
         f"{np.median(r[both]):.1f} m); the stem is drawn from the stand, not from this "
