@@ -98,6 +98,35 @@ def cohorts(v, family, truncation, tail, mix_index, cohort2_fractions, two_cohor
     return out
 
 
+def cohort_rows(cohort: Cohort, rows, n: int) -> Cohort:
+    """The cohort of some of its ``n`` rows: exactly what :func:`cohorts` gives for them.
+
+    Parameters
+    ----------
+    cohort : Cohort
+    rows : array of bool (n,) or of int
+    n : int
+        The cohort's rows.
+
+    Returns
+    -------
+    Cohort
+    """
+
+    def take(x):
+        x = np.asarray(x)
+        return x[rows] if x.ndim and x.shape[0] == n else x
+
+    pdf = cohort.pdf
+    if pdf is not None:
+        fast, (column, loc, scale) = pdf.args
+        pdf = partial(_family_pdf, fast, (tuple(take(c) for c in column), take(loc), take(scale)))
+    return Cohort(
+        take(cohort.stems), pdf, take(cohort.lo), take(cohort.hi), take(cohort.fractions),
+        take(cohort.present),
+    )  # fmt: skip
+
+
 def narrowest_sd(v) -> np.ndarray:
     """The smallest height sd (m) of each row's cohorts, for full vectors ``v`` (n,)."""
     second = np.where(v[:, _I["cohort2_fraction"]] > 0, v[:, _I["cohort2_height_sd"]], np.inf)

@@ -14,7 +14,7 @@ from ..crowns import CROWN_SHAPES, SHAPE_NAMES
 from ..height_families import HEIGHT_DISTRIBUTIONS
 from ..pulse import layer_kernel
 from ..stand_params import StandParams
-from .cohorts import Cohort, cohorts, narrowest_sd
+from .cohorts import Cohort, cohort_rows, cohorts, narrowest_sd
 from .depth import groups, tree_depth
 from .grid import anchor_period, clip_keeping_energy, grid_canopy, grid_weight
 from .ground import ground_return
@@ -340,7 +340,7 @@ class ExpectedWaveformModel:
         gridded = weight > 0.0
         canopy, gap0 = np.zeros((v.shape[0], self.heights.size)), np.ones(v.shape[0])
         if gridded.any():
-            part = cohorts if gridded.all() else self._cohorts(v[gridded])
+            part = cohorts if gridded.all() else self._rows(cohorts, gridded)
             canopy[gridded], gap0[gridded], redo = self._canopy_grid(
                 v[gridded], part, self._top(part)
             )
@@ -348,7 +348,7 @@ class ExpectedWaveformModel:
         edges = weight < 1.0
         if edges.any():
             again, w = v[edges], weight[edges]
-            part = self._cohorts(again)
+            part = cohorts if edges.all() else self._rows(cohorts, edges)
             exact, exact_gap0 = self._canopy_edges(again, part, self._top(part), True)
             canopy[edges] = w[:, None] * canopy[edges] + (1.0 - w[:, None]) * exact
             gap0[edges] = w * gap0[edges] + (1.0 - w) * exact_gap0
@@ -431,6 +431,11 @@ class ExpectedWaveformModel:
             self._mixes[1, self._shapes][None, :],
             two,
         )
+
+    @staticmethod
+    def _rows(cohorts, rows):
+        """The cohorts of the rows ``rows`` (bool (n,)) only (:func:`.cohorts.cohort_rows`)."""
+        return [cohort_rows(c, rows, rows.size) for c in cohorts]
 
     @staticmethod
     def _top(cohorts):

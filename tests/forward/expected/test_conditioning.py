@@ -129,3 +129,28 @@ def test_invalid_conditioning_is_masked_and_has_no_stem_map():
     with pytest.raises(ValueError, match="height_cap"):
         params_from_vector(full[4], PARAMS)
     assert FIELD_INDEX["height_cap"] < FIELD_INDEX["mix_cone"]
+
+
+@pytest.mark.parametrize("family", ["truncnorm", "lognormal"])
+def test_a_cohort_cut_to_some_rows_is_the_cohort_of_those_rows(family):
+    """The model sends rows to exact depths or to the grid by their narrowest cohort and
+    cuts the cohorts it has to those rows: exactly what computing them again gives, for
+    two storeys, a cap and apex trees, and a family whose location is a scalar."""
+    params = example_stand(
+        height_family=family, shape_mix={"cone": 0.4, "ellipsoid": 0.6},
+        cohort2_fraction=0.5, cohort2_height_mean=6.0, cohort2_height_sd=1.5,
+        cohort2_shape_mix="cone",
+    )  # fmt: skip
+    model = _model(params=params)
+    rows = _rows(model, cap=np.linspace(TOP - 3.0, TOP + 5.0, 7), apex=[0.0, 20.0] * 3 + [5.0])
+    full = model._full(rows)
+    keep = np.array([True, False, True, True, False, False, True])
+    whole, cut = model._cohorts(full), model._cohorts(full[keep])
+    assert len(whole) == len(cut) == 3  # both storeys and the apex trees
+    heights = np.linspace(0.0, 2.0 * TOP, 40)[None, :]
+    for mine, theirs in zip(model._rows(whole, keep), cut, strict=True):
+        for name in ("stems", "lo", "hi", "fractions", "present"):
+            np.testing.assert_array_equal(getattr(mine, name), getattr(theirs, name))
+        if theirs.pdf is not None:
+            grid = np.repeat(heights, keep.sum(), axis=0)
+            np.testing.assert_array_equal(mine.pdf(grid), theirs.pdf(grid))
