@@ -31,7 +31,8 @@ reference's posterior sd; they are also compared with the ``tau`` rule's run of 
 shot and seed where it ran. ``--seed-offset K`` prepares each such shot with the
 reference's seed plus K instead: the error then also holds what the preparation's own
 randomness (the MAP search, the discrepancy's realisations) moves. ``--combine`` joins
-such runs' ``summary.json`` files into one table and curve.
+such runs' ``summary.json`` files into one table and curve (where two files hold a shot
+under one variant, the later file's run is kept).
 
     python studies/inversion_speed.py --data ../shared/data/real --gedi-shots ID ...
                                       --lvis-shots ID ... [--stop-rule ess-rhat tau]
@@ -280,6 +281,9 @@ def main():
     args = parser.parse_args()
     if args.combine:
         rows = [row for path in args.combine for row in json.loads(Path(path).read_text())["shots"]]
+        # a shot run again under the same variant: the later file's run replaces it
+        latest = {(row["instrument"], row["shot"], row["variant"]): row for row in rows}
+        rows = list(latest.values())
         references = read_store(args.reference_file)
         for row in rows:  # against the store as it is now
             reference = references.get(f"{row['instrument']}:{row['shot']}")
