@@ -230,13 +230,9 @@ def statistics(records, instrument) -> dict:
             )
         ),
         "contradictions_unflagged": _contradictions(done),
-        "model_error_raised": int(
-            sum(any(f.startswith(MODEL_ERROR_FLAG) for f in r["flags"]) for r in done)
-        ),
+        "model_error_raised": _count_flagged(done, MODEL_ERROR_FLAG),
         # the footprint's tallest stem far below its own waveform's RH98 in most draws
-        "canopy_height_below_rh98": int(
-            sum(any(f.startswith(CANOPY_HEIGHT_FLAG) for f in r["flags"]) for r in done)
-        ),
+        "canopy_height_below_rh98": _count_flagged(done, CANOPY_HEIGHT_FLAG),
         "median_instrument_floor": _percentile_of(done, "instrument_floor", 50),
         # per parameter, the shots whose posterior stayed at its prior (records made
         # before the comparison existed have none)
@@ -452,6 +448,11 @@ def _write(out, summary, records) -> None:
 
 def _write_shots(out, records) -> None:
     (out / "shots.json").write_text(json.dumps(records, indent=1, default=_json))
+
+
+def _count_flagged(records, prefix) -> int:
+    """Records with a flag that begins with ``prefix``."""
+    return int(sum(any(f.startswith(prefix) for f in r["flags"]) for r in records))
 
 
 def _count_over(records, key, threshold):
