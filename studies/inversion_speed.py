@@ -243,8 +243,11 @@ def main():
     )
     parser.add_argument(
         "--tallest-stem",
-        action="store_true",
-        help="condition each footprint on a latent tallest stem (InversionSettings.tallest_stem)",
+        action="store_const",
+        const=True,
+        default=InversionSettings().tallest_stem,
+        help="condition every footprint on a latent tallest stem (default: the settings', "
+        "two-storey stand models only)",
     )
     add_sampler_options(parser)
     parser.add_argument("--data", help="real files: a folder, or 'examples' (lidarinv/data)")

@@ -129,7 +129,8 @@ def truth_priors(settings) -> tuple[dict, dict]:
     overrides, so that truth and inversion share one prior."""
     placeholder = Uniform(0.0, 1.0)  # the shot-specific nuisance priors are not drawn
     nuisance = {name: placeholder for name in NUISANCE if name != "rho_ratio"}
-    space = default_space(nuisance, settings.priors, tallest_stem=settings.tallest_stem)
+    latent = settings.latent_stem(settings.cohorts)
+    space = default_space(nuisance, settings.priors, tallest_stem=latent)
     drawn = [space.by_name[name] for name in (*STRUCTURE, "rho_ratio")]
     priors = {p.name: p.prior for p in drawn if p.fixed is None}
     return priors, {p.name: p.fixed for p in drawn if p.fixed is not None}
@@ -438,8 +439,11 @@ def main():
     )
     parser.add_argument(
         "--tallest-stem",
-        action="store_true",
-        help="condition each footprint on a latent tallest stem (InversionSettings.tallest_stem)",
+        action="store_const",
+        const=True,
+        default=InversionSettings().tallest_stem,
+        help="condition every footprint on a latent tallest stem (default: the settings', "
+        "two-storey stand models only)",
     )
     parser.add_argument(
         "--ground-prior-sd",

@@ -194,6 +194,7 @@ def problem_for_shot(shot: Shot, settings: InversionSettings) -> InversionProble
     """
     if settings.cohorts == AUTO:  # one stand model a problem (see build_problem)
         settings = replace(settings, cohorts=1)
+    settings = replace(settings, tallest_stem=settings.latent_stem(settings.cohorts))
     top = DEFAULT_STRUCTURE_PRIORS["top_height"]
     nuisance = shot.nuisance_priors(settings.ground_prior_sd_m, (top.lower, top.upper))
     fixed = fixed_discrepancy(shot, settings)
@@ -261,7 +262,7 @@ def sampled_dimensions(settings: InversionSettings, measured_pulse: bool = True)
         nuisance["pulse_broadening"] = placeholder
     cohorts = 1 if settings.cohorts == 1 else 2
     space = default_space(
-        nuisance, overrides, settings.ridges, settings.unbounded, settings.tallest_stem,
+        nuisance, overrides, settings.ridges, settings.unbounded, settings.latent_stem(cohorts),
         cohorts=cohorts,
     )  # fmt: skip
     return space.ndim

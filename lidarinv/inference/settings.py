@@ -26,6 +26,9 @@ AUTO = "auto"
 #: Height cohorts a stand may have (``InversionSettings.cohorts``), or :data:`AUTO`.
 COHORT_COUNTS = (1, 2, AUTO)
 
+#: ``InversionSettings.tallest_stem``: always, never, or :data:`AUTO` (with two storeys).
+TALLEST_STEM_CHOICES = (True, False, AUTO)
+
 #: The explicit engine's accuracy for the discrepancy (see ``RealisationSettings``): its
 #: column grid at a 1 % L1 tolerance.
 DISCREPANCY_QUADRATURE = AccuracySettings(tolerance=1e-2)
@@ -165,15 +168,19 @@ class InversionSettings:
         a pilot MAP found with ``observed`` (:mod:`.realisations`).
     realisations : RealisationSettings
         How the ``realisations`` covariance is simulated.
-    tallest_stem : bool
+    tallest_stem : bool or str
         Condition the footprint on its tallest stem (within the 1/e² disc): latent
         parameters for its height, whose law the stand gives (of one storey or both),
         and its position (:class:`.model.stand.StandMapping`): one
         footprint rarely holds a stem in the upper tail of the stand's heights, and a
         Gaussian discrepancy, symmetric, cannot say so. The ``realisations`` covariance
-        then holds what remains once each stand's own tallest stem is accounted for. A
-        priors file turns it on with a table for either latent (e.g.
-        ``[tallest_stem_height]`` with ``free = true``, or a prior or a value).
+        then holds what remains once each stand's own tallest stem is accounted for.
+        ``"auto"`` (the default) conditions a two-storey stand model and not a one-storey
+        one (:meth:`latent_stem`): under a sparse upper storey the discrepancy, simulated
+        about the MAP's stand, can otherwise take the whole upper storey's return while
+        the lower storey explains the rest. A priors file turns it on with a table for
+        either latent (e.g. ``[tallest_stem_height]`` with ``free = true``, or a prior or
+        a value).
     cohorts : int or str
         Height cohorts of the stand: 1, one truncated-normal height family; 2, a lower
         storey beside it (:mod:`.model.two_cohort`), for multi-layer canopies and
@@ -232,7 +239,7 @@ class InversionSettings:
     sampler: SamplerSettings = field(default_factory=SamplerSettings)
     model: ModelSettings = field(default_factory=ModelSettings)
     realisations: RealisationSettings = field(default_factory=RealisationSettings)
-    tallest_stem: bool = False
+    tallest_stem: bool | str = AUTO
     cohorts: int | str = AUTO
     likelihood: str = "gaussian"
     footprint_cover_draws: int = 0
@@ -240,8 +247,29 @@ class InversionSettings:
     def __post_init__(self):
         if self.cohorts not in COHORT_COUNTS:
             raise ValueError(f"cohorts must be one of {COHORT_COUNTS}, got {self.cohorts!r}")
+        if self.tallest_stem not in TALLEST_STEM_CHOICES:
+            raise ValueError(
+                f"tallest_stem must be one of {TALLEST_STEM_CHOICES}, got {self.tallest_stem!r}"
+            )
         if not self.footprint_cover_draws >= 0:
             raise ValueError(f"footprint_cover_draws must be ≥ 0, got {self.footprint_cover_draws}")
+
+    def latent_stem(self, cohorts) -> bool:
+        """Whether a stand model of ``cohorts`` height cohorts carries the tallest-stem
+        latents: as set, or with ``tallest_stem="auto"``, where it has two.
+
+        Parameters
+        ----------
+        cohorts : int or str
+            1, 2, or ``"auto"`` (the larger model it may choose).
+
+        Returns
+        -------
+        bool
+        """
+        if self.tallest_stem == AUTO:
+            return cohorts != 1
+        return bool(self.tallest_stem)
 
     @classmethod
     def from_priors_file(cls, path, **changes) -> "InversionSettings":

@@ -5,9 +5,11 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from ..model.tallest_stem import TALLEST_STEM, TALLEST_STEM_POSITION, disc_area
 from ..model.two_cohort import EMPTY_LOWER_STOREY
 from ..problem import InversionProblem, problem_for_shot
 from ..sampling.start import find_map
+from ..settings import AUTO
 from ..shot import Shot
 from .ambiguity import pulse_width_m
 
@@ -76,7 +78,9 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
     (:data:`NESTED_SEARCH_STARTS`): its optimum is then never far below the nested one's,
     and the search costs less. A canopy return that spans fewer than
     :data:`STOREYS_RESOLVED_PULSE_WIDTHS` pulse widths above the ground cannot show two
-    storeys, and keeps one cohort without the second search.
+    storeys, and keeps one cohort without the second search. With ``tallest_stem="auto"``
+    both models are weighed without the tallest-stem latents, and a chosen two-cohort
+    model then gains them (:func:`with_latent_stem`).
 
     Parameters
     ----------
@@ -100,6 +104,9 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
     773–795.
     """
     shot, candidates = Shot.from_observation(observation, settings), {}  # analysed once
+    asked, latent_after = settings, settings.tallest_stem == AUTO
+    if latent_after:  # the storeys are weighed as one model each, the latents added after
+        settings = replace(settings, tallest_stem=False)
     search, seeds = settings.sampler, None
     extent = float(shot.analysis.signal_start - shot.analysis.ground)
     width = pulse_width_m(shot.instrument.pulse)
@@ -127,7 +134,77 @@ def choose_cohorts(observation, settings, rng) -> tuple[InversionProblem, object
         canopy_extent_m=extent,
         pulse_width_m=width,
     )
-    return candidates[chosen][0], candidates[chosen][1], choice
+    problem, estimate = candidates[chosen][:2]
+    if latent_after and asked.latent_stem(chosen):
+        problem, estimate = with_latent_stem(shot, problem, estimate, rng)
+    return problem, estimate, choice
+
+
+def with_latent_stem(shot: Shot, problem: InversionProblem, estimate, rng):
+    """A problem's stand model conditioned on the footprint's tallest stem, and its MAP.
+
+    The search starts from :func:`latent_start` beside half the sampler's prior draws
+    (:data:`NESTED_SEARCH_STARTS`).
+
+    Parameters
+    ----------
+    shot : Shot
+    problem : InversionProblem
+        Without the latents.
+    estimate : MapEstimate
+        Its MAP search.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    problem : InversionProblem
+        The same settings with ``tallest_stem=True``.
+    estimate : MapEstimate
+        Its MAP search.
+    """
+    latent = problem_for_shot(shot, replace(problem.settings, tallest_stem=True))
+    post, search = latent.log_posterior, latent.settings.sampler
+    seeds = latent_start(problem, estimate.u, latent.space, shot.instrument.footprint_sigma_m)
+    if seeds is not None:
+        search = replace(search, starts=max(1, round(search.starts * NESTED_SEARCH_STARTS)))
+    return latent, find_map(lambda u: post(u)[:, 0], latent.space, rng, search, seeds)
+
+
+def latent_start(problem: InversionProblem, u, space, footprint_sigma_m) -> np.ndarray | None:
+    """The point ``u`` of a problem without the tallest-stem latents in a ``space`` with
+    them: the same stand, its stem at the median of the stem's law given that stand (the
+    tallest of a Poisson draw in the disc, :func:`.model.tallest_stem.disc_area`) and, where
+    free, at the middle of its position's range.
+
+    Parameters
+    ----------
+    problem : InversionProblem
+    u : array (ndim,)
+        Unbounded coordinates of ``problem.space``.
+    space : ParameterSpace
+        With the latents.
+    footprint_sigma_m : float (m)
+
+    Returns
+    -------
+    array (1, space.ndim) or None
+        None where ``space`` frees a parameter neither gives or the point lies outside its
+        support.
+    """
+    x, _ = problem.space.from_unbounded(np.asarray(u, float)[None, :])
+    values = problem.space.values(x)
+    mapping = problem.log_posterior.mapping
+    density_m2 = mapping.model_vectors(values)[1]["density"] * 1e-4
+    median = np.full(1, 0.5)
+    stem = mapping.tallest_in_area(
+        {**values, "density_m2": density_m2}, disc_area(footprint_sigma_m), median
+    )
+    values = {**values, TALLEST_STEM: stem, TALLEST_STEM_POSITION: median}
+    if any(name not in values for name in space.names):
+        return None
+    x2 = np.array([[float(np.ravel(values[name])[0]) for name in space.names]])
+    u2 = space.to_unbounded(x2)
+    return u2 if np.all(np.isfinite(u2)) else None
 
 
 def nested_start(space1, u1, space2) -> np.ndarray | None:

@@ -12,13 +12,17 @@ from lidarinv.inference import InversionSettings, SamplerSettings
 from lidarinv.inference.model.parameters import default_space
 from lidarinv.inference.model.priors import Uniform
 from lidarinv.inference.model.stand import StandMapping, default_template
+from lidarinv.inference.model.tallest_stem import TALLEST_STEM, disc_area
 from lidarinv.inference.model.two_cohort import COHORT2, TwoCohortMapping, mixture_sum
 from lidarinv.inference.passes.cohorts import (
     STOREYS_RESOLVED_PULSE_WIDTHS,
     choose_cohorts,
+    latent_start,
     nested_start,
+    with_latent_stem,
 )
 from lidarinv.inference.problem import problem_for_shot
+from lidarinv.inference.sampling.start import find_map
 from lidarinv.inference.shot import Shot
 
 N = 6
@@ -153,8 +157,9 @@ def test_settings_choose_the_cohorts_and_refuse_what_cannot_be_built(tmp_path):
 
 def test_the_nested_start_is_the_one_cohort_fit_in_the_two_cohort_space(rng):
     """The one-cohort point mapped into the two-cohort space (an empty lower storey) keeps
-    the one-cohort log-likelihood: the two-cohort search starts no worse than it."""
-    settings = InversionSettings(discrepancy_model="observed")
+    the one-cohort log-likelihood: the two-cohort search starts no worse than it. The
+    storeys are weighed without the tallest-stem latents (``tallest_stem="auto"``)."""
+    settings = InversionSettings(discrepancy_model="observed", tallest_stem=False)
     shot = Shot.from_observation(synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng), settings)
     one = problem_for_shot(shot, replace(settings, cohorts=1))
     two = problem_for_shot(shot, replace(settings, cohorts=2))
@@ -167,6 +172,48 @@ def test_the_nested_start_is_the_one_cohort_fit_in_the_two_cohort_space(rng):
     ]
     assert u1.shape[0] >= 4
     np.testing.assert_allclose(like[1], like[0], atol=0.2)  # 0.1 % of the stems below
+
+
+def test_the_latent_stem_is_on_by_default_for_two_storeys_only():
+    """``tallest_stem="auto"`` conditions a two-storey model (or the larger model that
+    ``cohorts="auto"`` may choose) and not a one-storey one; True and False hold for both,
+    and anything else is refused."""
+    auto = InversionSettings()
+    assert auto.tallest_stem == "auto"
+    assert not auto.latent_stem(1) and auto.latent_stem(2) and auto.latent_stem("auto")
+    assert InversionSettings(tallest_stem=True).latent_stem(1)
+    assert not InversionSettings(tallest_stem=False).latent_stem(2)
+    with pytest.raises(ValueError, match="tallest_stem"):
+        InversionSettings(tallest_stem="sometimes")
+
+
+def test_a_two_storey_fit_gains_the_latent_stem_at_the_median_of_its_law(rng):
+    """The latent's search starts from the two-storey MAP's stand with the stem at the
+    median of its law: the tallest of a Poisson draw of λ·A stems from the mixture is
+    below h with probability exp(−λ·A·S(h)) = ½. The search ends no worse than that
+    start."""
+    settings = InversionSettings(discrepancy_model="observed", cohorts=2, tallest_stem=False)
+    shot = Shot.from_observation(synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], rng), settings)
+    quick = SamplerSettings(candidates=256, starts=4, polish=1)
+    plain = problem_for_shot(shot, replace(settings, sampler=quick))
+    post = plain.log_posterior
+    estimate = find_map(lambda u: post(u)[:, 0], plain.space, rng, quick)
+    latent, found = with_latent_stem(shot, plain, estimate, rng)
+    assert latent.settings.tallest_stem is True and TALLEST_STEM in latent.space.names
+    sigma = shot.instrument.footprint_sigma_m
+    start = latent_start(plain, estimate.u, latent.space, sigma)
+    x, _ = latent.space.from_unbounded(start)
+    values = latent.space.values(x)
+    stand = plain.space.values(plain.space.from_unbounded(estimate.u[None, :])[0])
+    for name in plain.space.names:  # the MAP's stand
+        np.testing.assert_allclose(values[name], stand[name], rtol=1e-9)
+    mapping = plain.log_posterior.mapping
+    density_m2 = mapping.model_vectors(stand)[1]["density"] * 1e-4
+    stem = values[TALLEST_STEM]
+    _, survival = _mixture_grid(mapping, {k: np.atleast_1d(v) for k, v in stand.items()}, 0, stem)
+    stems_in_disc = density_m2[0] * disc_area(sigma)
+    np.testing.assert_allclose(np.exp(-stems_in_disc * survival), 0.5, rtol=1e-3)
+    assert found.log_prob >= latent.log_posterior(start)[0, 0] - 1e-6
 
 
 def test_a_canopy_too_short_for_two_storeys_is_searched_with_one_cohort(rng):
