@@ -127,6 +127,7 @@ def reference(observation, seed: int, restarts: int, steps: int, earlier=None) -
         "cohorts": prepared.problem.settings.cohorts,
         "realisations": prepared.problem.settings.realisations.count,
         "numerics_revision": NUMERICS_REVISION,
+        "tallest_stem": bool(prepared.problem.settings.tallest_stem),
         "instrument_floor": diagnostics.get("instrument_floor"),
         "draws": int(sum(r.samples.shape[0] for r in results)),
         "largest_tau": [largest_tau(r) for r in results],
@@ -136,7 +137,7 @@ def reference(observation, seed: int, restarts: int, steps: int, earlier=None) -
     }
     if earlier is not None:
         same = ("seed", "steps_per_restart", "cohorts", "instrument_floor", "realisations",
-                "numerics_revision")  # fmt: skip
+                "numerics_revision", "tallest_stem")  # fmt: skip
         if any(earlier.get(k) != record[k] for k in same):
             raise SystemExit(f"shot {record['shot']}: the stored reference differs in {same}")
         for key in ("draws", "seconds", "cpu_seconds"):

@@ -107,6 +107,7 @@ def _run_record(result, seconds, cpu_seconds) -> dict:
         "converged": result.converged,
         "cohorts": result.settings.get("cohorts"),
         "realisations": result.settings.get("realisations", {}).get("count"),
+        "tallest_stem": bool(result.settings.get("tallest_stem")),
         "instrument_floor": result.diagnostics.get("instrument_floor"),
         # how far another draw of the discrepancy's realisations moves the quantiles (sd)
         "realisation_spread": largest_spread(result.diagnostics),
@@ -178,6 +179,8 @@ def compare_with_reference(row: dict, reference: dict) -> None:
     same_count = row.get("realisations") == reference.get("realisations", row.get("realisations"))
     # records without a revision predate it: revision 1
     same_model = reference.get("numerics_revision", 1) == NUMERICS_REVISION
+    # records without the latent's flag predate it being on for two storeys: off
+    same_model &= row.get("tallest_stem", False) == reference.get("tallest_stem", False)
     row["same_posterior_as_reference"] = (
         row["cohorts"] == reference["cohorts"]
         and same_count
@@ -195,9 +198,11 @@ def reference_agreement(result, reference: dict) -> dict:
     ``max_error_sd`` and the reference's own ``reference_error_sd``."""
     row = {"instrument_floor": result.diagnostics.get("instrument_floor"),
            "cohorts": result.settings.get("cohorts"), "reported": reported_quantiles(result),
-           "realisations": result.settings.get("realisations", {}).get("count")}  # fmt: skip
+           "realisations": result.settings.get("realisations", {}).get("count"),
+           "tallest_stem": bool(result.settings.get("tallest_stem"))}  # fmt: skip
     compare_with_reference(row, reference)
-    del row["instrument_floor"], row["cohorts"], row["reported"], row["realisations"]
+    for key in ("instrument_floor", "cohorts", "reported", "realisations", "tallest_stem"):
+        del row[key]
     return row
 
 
