@@ -199,12 +199,7 @@ def latent_start(problem: InversionProblem, u, space, footprint_sigma_m) -> np.n
     stem = mapping.tallest_in_area(
         {**values, "density_m2": density_m2}, disc_area(footprint_sigma_m), median
     )
-    values = {**values, TALLEST_STEM: stem, TALLEST_STEM_POSITION: median}
-    if any(name not in values for name in space.names):
-        return None
-    x2 = np.array([[float(np.ravel(values[name])[0]) for name in space.names]])
-    u2 = space.to_unbounded(x2)
-    return u2 if np.all(np.isfinite(u2)) else None
+    return point_in(space, {**values, TALLEST_STEM: stem, TALLEST_STEM_POSITION: median})
 
 
 def nested_start(space1, u1, space2) -> np.ndarray | None:
@@ -213,8 +208,15 @@ def nested_start(space1, u1, space2) -> np.ndarray | None:
     (:data:`.model.two_cohort.EMPTY_LOWER_STOREY`); None where ``space2`` frees a
     parameter neither gives, or the point lies outside its support."""
     values = {**space1.values(space1.from_unbounded(u1[None, :])[0]), **EMPTY_LOWER_STOREY}
-    if any(name not in values for name in space2.names):
+    return point_in(space2, values)
+
+
+def point_in(space, values) -> np.ndarray | None:
+    """One point of ``space`` in unbounded coordinates from parameter ``values`` (each a
+    scalar or a one-row array); None where ``space`` frees a parameter ``values`` lacks,
+    or the point lies outside its support."""
+    if any(name not in values for name in space.names):
         return None
-    x2 = np.array([[float(np.ravel(values[name])[0]) for name in space2.names]])
-    u2 = space2.to_unbounded(x2)
-    return u2 if np.all(np.isfinite(u2)) else None
+    x = np.array([[float(np.ravel(values[name])[0]) for name in space.names]])
+    u = space.to_unbounded(x)
+    return u if np.all(np.isfinite(u)) else None
