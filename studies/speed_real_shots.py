@@ -97,6 +97,18 @@ def _timed_result(obs, settings, seed):
     return result, time.perf_counter() - start, time.process_time() - cpu
 
 
+def posterior_identity(result) -> dict:
+    """What decides which posterior a run sampled, as :func:`compare_with_reference` checks
+    it against a reference: the stand model's cohorts, the discrepancy's realisation
+    count, the tallest-stem latent and the instrument model's error."""
+    return {
+        "cohorts": result.settings.get("cohorts"),
+        "realisations": result.settings.get("realisations", {}).get("count"),
+        "tallest_stem": bool(result.settings.get("tallest_stem")),
+        "instrument_floor": result.diagnostics.get("instrument_floor"),
+    }
+
+
 def _run_record(result, seconds, cpu_seconds) -> dict:
     d = result.diagnostics
     return {
@@ -105,10 +117,7 @@ def _run_record(result, seconds, cpu_seconds) -> dict:
         "steps": int(d["n_steps"]),
         "burn": int(d["burn"]),
         "converged": result.converged,
-        "cohorts": result.settings.get("cohorts"),
-        "realisations": result.settings.get("realisations", {}).get("count"),
-        "tallest_stem": bool(result.settings.get("tallest_stem")),
-        "instrument_floor": result.diagnostics.get("instrument_floor"),
+        **posterior_identity(result),
         # how far another draw of the discrepancy's realisations moves the quantiles (sd)
         "realisation_spread": largest_spread(result.diagnostics),
         "quantities": {  # ESS, R̂ and τ of the monitored quantities
@@ -196,14 +205,10 @@ def reference_agreement(result, reference: dict) -> dict:
     """A result's quantile errors against its shot's reference run
     (:func:`compare_with_reference`): ``same_posterior_as_reference``, ``error_sd``,
     ``max_error_sd`` and the reference's own ``reference_error_sd``."""
-    row = {"instrument_floor": result.diagnostics.get("instrument_floor"),
-           "cohorts": result.settings.get("cohorts"), "reported": reported_quantiles(result),
-           "realisations": result.settings.get("realisations", {}).get("count"),
-           "tallest_stem": bool(result.settings.get("tallest_stem"))}  # fmt: skip
+    identity = posterior_identity(result)
+    row = {**identity, "reported": reported_quantiles(result)}
     compare_with_reference(row, reference)
-    for key in ("instrument_floor", "cohorts", "reported", "realisations", "tallest_stem"):
-        del row[key]
-    return row
+    return {key: value for key, value in row.items() if key not in identity and key != "reported"}
 
 
 def largest_error(errors: dict) -> float:
