@@ -12,7 +12,9 @@ reported per flight line (the ``LFID`` the file gives each shot), so that the ta
 stands apart; every LVIS shot's fit is drawn as it finishes (``shots/shot_<id>.png``:
 waveform, both ground candidates of the analysis, the product's ground, the fit and its
 residuals), and the summary names each line's worst shots and copies their figures
-(``worst_<lfid>_<rank>.png``). ``shots.json`` is
+(``worst_<lfid>_<rank>.png``). Each instrument's summary also lists every shot in one
+compact row (``per_shot``: :func:`real_inversion_table.shot_rows`), from which the
+validation page draws its per-shot figure and table. ``shots.json`` is
 rewritten after every shot, so a run stopped early keeps what it finished;
 ``--skip-shots`` and ``--max-shots`` split a file's shots into runs that ``--combine``
 joins. At default settings, a shot that has a long reference run
@@ -38,6 +40,7 @@ from pathlib import Path
 import harness
 import numpy as np
 from real_inversion_figures import predictive_figures, rh98_figure, shot_figure
+from real_inversion_table import shot_rows
 from reference_posteriors import STORE as REFERENCE_STORE
 from speed_real_shots import plot_time_vs_error, read_store, reference_agreement
 
@@ -253,6 +256,8 @@ def statistics(records, instrument) -> dict:
             for r in done
             if "reference" in r
         ],
+        # one compact row a shot: the validation page's per-shot figure and table
+        "per_shot": shot_rows(done),
     }
     for q, (name, key) in QUANTITIES.items():
         triples = [
@@ -315,6 +320,7 @@ def flight_lines(records, out=None) -> dict:
     for lfid in sorted({r["lfid"] for r in records if r.get("lfid") is not None}):
         members = [r for r in records if r.get("lfid") == lfid]
         stats = statistics(members, "lvis")
+        del stats["per_shot"]  # the instrument's statistics hold every shot's row
         rh98 = [r["product"]["rh98"] for r in members if np.isfinite(r["product"]["rh98"])]
         stats["product_rh98_median"] = float(np.median(rh98)) if rh98 else None
         done = [r for r in members if "posterior" in r]

@@ -18,10 +18,10 @@ from .render import (
     render_coverage,
     render_forward_accuracy,
     render_generic,
-    render_real_inversion,
     render_real_products,
     render_speed,
 )
+from .render_inversion import render_real_inversion
 from .render_reference import (
     render_continuity,
     render_coordinates_vs_reference,

@@ -1,0 +1,55 @@
+"""Compact per-shot rows of ``studies/real_inversion.py`` for the validation pages: one
+row a shot, small enough to publish with the summary, from which the page draws its
+per-shot figure and table."""
+
+import numpy as np
+
+#: The posterior quantities a row keeps (5/50/95 %), as ``real_inversion`` records them.
+ROW_QUANTITIES = ("ground", "rh98", "rh98_footprint", "rh98_product", "canopy_height")
+
+
+def flag_kind(flag: str) -> str:
+    """A flag's kind: its words before the first colon or parenthesis (``"misfit"``,
+    ``"not converged at the step cap"``, ``"canopy height below the waveform's RH98"``)."""
+    return flag.split(":")[0].split(" (")[0].strip()
+
+
+def _rounded(value, digits=2):
+    value = float(value)
+    return round(value, digits) if np.isfinite(value) else None
+
+
+def shot_rows(records) -> list:
+    """One row per inverted shot: its number and flight line, the storeys chosen, whether
+    it converged, its CPU time, the product's ground and RH98, the posterior's 5/50/95 %
+    of :data:`ROW_QUANTITIES` (m, to the cm) and the kinds of its flags
+    (:func:`flag_kind`).
+
+    Parameters
+    ----------
+    records : list of dict
+        ``real_inversion`` shot records with a ``posterior`` (inverted shots).
+
+    Returns
+    -------
+    list of dict
+        JSON-ready; None for a value that is not finite.
+    """
+    rows = []
+    for r in records:
+        posterior = r["posterior"]
+        rows.append(
+            {
+                "shot": str(r["shot"]),
+                "lfid": r.get("lfid"),
+                "cohorts": r.get("cohorts"),
+                "converged": bool(r["converged"]),
+                "cpu_seconds": _rounded(r.get("cpu_seconds", np.nan), 1),
+                "product": {k: _rounded(r["product"][k]) for k in ("ground", "rh98")},
+                "posterior": {
+                    k: [_rounded(v) for v in posterior[k]] for k in ROW_QUANTITIES if k in posterior
+                },
+                "flags": sorted({flag_kind(f) for f in r["flags"]}),
+            }
+        )
+    return rows
