@@ -9,16 +9,8 @@ import numpy as np
 
 from .render import _cell, difference_table, literal, provenance, table
 
-#: Flag kinds that say a shot's answer may be wrong (drawn in orange); the others (the
-#: instrument model's error raised, a few slow walkers) say how it was reached.
-WARNING_KINDS = ("canopy height", "misfit", "ground ambiguous", "ground may be hidden")
 #: Shots above which the section draws the figure only, without the table.
 TABLE_ROWS = 40
-
-
-def warned(row) -> bool:
-    """Whether a row carries a flag of :data:`WARNING_KINDS`."""
-    return any(kind.startswith(WARNING_KINDS) for kind in row["flags"])
 
 
 def per_shot_section(rows, figures: Path, key: str, instrument: str) -> str:
@@ -88,7 +80,8 @@ def _cell_m(value) -> str:
 
 def _rh98_figure(rows, path: Path, instrument) -> bool:
     """Model and footprint RH98 (median, 90 % interval for the model) against the
-    product's; orange where a warning flag is on, hollow where the run did not converge.
+    product's; orange where a warning flag is on (the row's ``warned``: the study's
+    ``real_inversion_table.WARNING_KINDS``), hollow where the run did not converge.
     False where no shot has a product RH98."""
     import matplotlib
 
@@ -101,7 +94,7 @@ def _rh98_figure(rows, path: Path, instrument) -> bool:
     x = np.array([r["product"]["rh98"] for r in rows], float)
     model = np.array([[np.nan if v is None else v for v in r["posterior"]["rh98"]] for r in rows])
     footprint = np.array([_median(r, "rh98_footprint") for r in rows], float)
-    colour = np.where([warned(r) for r in rows], "tab:orange", "tab:blue")
+    colour = np.where([r.get("warned", False) for r in rows], "tab:orange", "tab:blue")
     converged = np.array([r["converged"] for r in rows])
     fig, ax = plt.subplots(figsize=(6.5, 4.6))
     ax.errorbar(x, model[:, 1], yerr=[model[:, 1] - model[:, 0], model[:, 2] - model[:, 1]],
@@ -117,10 +110,10 @@ def _rh98_figure(rows, path: Path, instrument) -> bool:
     limits = [values.min() - 1.0, values.max() + 1.0]
     ax.plot(limits, limits, "k-", lw=0.6)
     ax.set_xlabel(f"{instrument.upper()} product RH98 (m)")
-    ax.set_ylabel("posterior RH98: median (model: and 90 % interval) (m)")
+    ax.set_ylabel("posterior RH98 (m): median; the model's 90 % interval")
     ax.set_title(
-        "blue: no warning; orange: canopy-height, misfit or ground flag; hollow: stopped "
-        "at the step cap",
+        "blue: no warning; orange: a warning flag (misfit, canopy height, ground, step\n"
+        "cap); hollow: stopped at the step cap",
         fontsize=8,
     )
     legend = ax.legend(fontsize=7, loc="upper left")
@@ -146,7 +139,11 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
         "says more about the extent than about the canopy); ``rh98_footprint`` is the RH98 "
         "of the footprint's own waveform (the expected one plus the discrepancy drawn given "
         "the data), in the model's convention, and ``rh98_footprint_model_convention`` sets "
-        "it beside the product's moved into that convention.\n\n"
+        "it beside the product's moved into that convention. *Far off* counts the shots "
+        "whose median lies more than 3 m (ground) or 5 m (RH98) from the product, and *no "
+        "warning* those of them that carry no warning flag (misfit, canopy height, ground "
+        "ambiguous or hidden, terrain outlier, stopped at the step cap): wrong answers that "
+        "pass as clean.\n\n"
     )
     if s.get("priors"):
         text += f"Priors file: ``{' '.join(s['priors'].split())}``.\n\n"
@@ -199,7 +196,8 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
             )
         text += "\n\n"
         differences = {q: d for q, d in part.items() if isinstance(d, dict) and "median_abs" in d}
-        coverage = {"inside": "inside_90", "widened": "inside_90_widened"}
+        coverage = {"inside": "inside_90", "widened": "inside_90_widened",
+                    "far off": "far_off", "far off, no warning": "far_off_unwarned"}  # fmt: skip
         text += difference_table("posterior", differences, coverage) + "\n"
         text += per_shot_section(part.get("per_shot"), figures, key, instrument)
         text += _reference_agreement(part.get("reference_agreement"), instrument)
