@@ -70,7 +70,7 @@ QUANTITIES = {
 #: product: the products' own errors are of that size.
 WIDENING_M = 1.0
 #: Posterior medians this far from the product (m) count as wrong answers, which should
-#: carry a warning (:func:`real_inversion_table.warned`): three times the products' own
+#: carry a warning (:attr:`lidarinv.inference.InversionResult.warnings`): three times the products' own
 #: errors for the ground (L2A's RMSE is about 1.4 m), and for RH98 five metres, beyond the
 #: conventions' differences that the model-convention comparisons leave.
 FAR_OFF_M = {"ground": 3.0, "rh98_model_convention": 5.0, "rh98_product": 5.0,

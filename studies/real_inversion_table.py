@@ -4,32 +4,22 @@ per-shot figure and table."""
 
 import numpy as np
 
+from lidarinv.inference.results.flags import is_warning
+
 #: The posterior quantities a row keeps (5/50/95 %), as ``real_inversion`` records them.
 ROW_QUANTITIES = ("ground", "rh98", "rh98_footprint", "rh98_product", "canopy_height")
-#: Flag kinds (:func:`flag_kind`, by their start) that tell a user not to take the answer
-#: as it stands: the model misses part of the waveform, the canopy height contradicts the
-#: footprint's own waveform, the ground may be another, or the run stopped at its cap. The
-#: others say how the answer was reached (the instrument model's error raised, a few slow
-#: walkers, the realisations' seed) and are on most LVIS shots.
-WARNING_KINDS = (
-    "misfit",
-    "canopy height",
-    "ground ambiguous",
-    "ground may be hidden",
-    "terrain outlier",
-    "not converged",
-)
 
 
-def flag_kind(flag: str) -> str:
-    """A flag's kind: its words before the first colon or parenthesis (``"misfit"``,
+def flag_label(flag: str) -> str:
+    """A flag's words before its first colon or parenthesis, for a table (``"misfit"``,
     ``"not converged at the step cap"``, ``"canopy height below the waveform's RH98"``)."""
     return flag.split(":")[0].split(" (")[0].strip()
 
 
 def warned(flags) -> bool:
-    """Whether any of ``flags`` is of a :data:`WARNING_KINDS` kind."""
-    return any(flag_kind(f).startswith(WARNING_KINDS) for f in flags)
+    """Whether any of ``flags`` warns that the answer may be wrong
+    (:func:`lidarinv.inference.results.flags.is_warning`)."""
+    return any(is_warning(f) for f in flags)
 
 
 def _rounded(value, digits=2):
@@ -40,8 +30,8 @@ def _rounded(value, digits=2):
 def shot_rows(records) -> list:
     """One row per inverted shot: its number and flight line, the storeys chosen, whether
     it converged, its CPU time, the product's ground and RH98, the posterior's 5/50/95 %
-    of :data:`ROW_QUANTITIES` (m, to the cm), the kinds of its flags (:func:`flag_kind`)
-    and whether one of them is a warning (:func:`warned`).
+    of :data:`ROW_QUANTITIES` (m, to the cm), its flags' labels (:func:`flag_label`) and
+    whether one of them is a warning (:func:`warned`).
 
     Parameters
     ----------
@@ -67,7 +57,7 @@ def shot_rows(records) -> list:
                 "posterior": {
                     k: [_rounded(v) for v in posterior[k]] for k in ROW_QUANTITIES if k in posterior
                 },
-                "flags": sorted({flag_kind(f) for f in r["flags"]}),
+                "flags": sorted({flag_label(f) for f in r["flags"]}),
                 "warned": warned(r["flags"]),
             }
         )

@@ -80,8 +80,9 @@ def _cell_m(value) -> str:
 
 def _rh98_figure(rows, path: Path, instrument) -> bool:
     """Model and footprint RH98 (median, 90 % interval for the model) against the
-    product's; orange where a warning flag is on (the row's ``warned``: the study's
-    ``real_inversion_table.WARNING_KINDS``), hollow where the run did not converge.
+    product's; orange where a warning flag is on (the row's ``warned``:
+    :attr:`lidarinv.inference.InversionResult.warnings`), hollow where the run did not
+    converge.
     False where no shot has a product RH98."""
     import matplotlib
 
@@ -142,8 +143,8 @@ def render_real_inversion(record, figures: Path, key: str) -> str:
         "it beside the product's moved into that convention. *Far off* counts the shots "
         "whose median lies more than 3 m (ground) or 5 m (RH98) from the product, and *no "
         "warning* those of them that carry no warning flag (misfit, canopy height, ground "
-        "ambiguous or hidden, terrain outlier, stopped at the step cap): wrong answers that "
-        "pass as clean.\n\n"
+        "ambiguous in the posterior or hidden, terrain outlier, stopped at the step cap: "
+        "``InversionResult.warnings``): wrong answers that pass as clean.\n\n"
     )
     if s.get("priors"):
         text += f"Priors file: ``{' '.join(s['priors'].split())}``.\n\n"

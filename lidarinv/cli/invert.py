@@ -89,8 +89,9 @@ def _selected(args, rng):
 
 
 def headline(result) -> str:
-    """The footprint's canopy height and cover, then what ``top_height`` is: the lines
-    ``lidarinv invert`` prints before the full table."""
+    """The footprint's canopy height and cover, then what ``top_height`` is and the
+    result's warnings (:attr:`InversionResult.warnings`): the lines ``lidarinv invert``
+    prints before the full table."""
     summary = result.summary()
     canopy = result.footprint_canopy()
     lines = [f"shot {result.shot_id}: the footprint (median, 90 % interval)"]
@@ -114,6 +115,8 @@ def headline(result) -> str:
             f"{row['p95']:.3g}]  upper limit of the stand's height distribution "
             "(mean + 2 sd), which one footprint rarely reaches"
         )
+    # a wrong answer must not read as clean: the warnings follow, in full
+    lines += [f"  warning: {flag}" for flag in result.warnings]
     return "\n".join(lines)
 
 

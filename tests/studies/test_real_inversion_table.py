@@ -27,7 +27,7 @@ def _record(shot, rh98, flags, converged=True):
 
 
 def test_a_row_keeps_the_flags_kinds_and_drops_what_is_not_finite():
-    from real_inversion_table import flag_kind, shot_rows
+    from real_inversion_table import flag_label, shot_rows
 
     flags = [
         "canopy height below the waveform's RH98: in 80% of draws the tallest stem ...",
@@ -36,7 +36,7 @@ def test_a_row_keeps_the_flags_kinds_and_drops_what_is_not_finite():
     ]
     (row,) = shot_rows([_record(10969487, 34.2, flags, converged=False)])
     assert row["shot"] == "10969487" and row["converged"] is False
-    assert row["flags"] == sorted(flag_kind(f) for f in flags)
+    assert row["flags"] == sorted(flag_label(f) for f in flags)
     assert "not converged at the step cap" in row["flags"] and row["warned"]
     assert row["posterior"]["rh98"] == [32.2, 34.2, 36.2]
     assert row["posterior"]["rh98_product"] == [None, None, None]

@@ -16,6 +16,10 @@ from ..sampling.start import MapEstimate, Mode, laplace_covariance
 #: Largest log ratio of Laplace masses exp(log p)·√det Σ at which another optimum still
 #: counts as an explanation: a posterior odds of 1 : 20 (log 20 ≈ 3).
 MASS_WINDOW = np.log(20.0)
+#: How the note of grounds that compete at the start begins (the walkers start at each).
+COMPETING_GROUNDS_NOTE = "ground ambiguous: the MAP puts it"
+#: How the flag of a posterior that keeps both grounds of a two-ground prior begins.
+GROUND_MODES_FLAG = "ground ambiguous in the posterior"
 
 #: Pulse area left out in each tail for the width that separates two grounds: the central
 #: 80 %, about the full width at half maximum of a Gaussian pulse.
@@ -88,7 +92,7 @@ def describe(kept) -> str | None:
         for mode, elevation in kept[1:]
     )
     return (
-        f"ground ambiguous: the MAP puts it at {kept[0][1]:.2f} m, other explanations at "
+        f"{COMPETING_GROUNDS_NOTE} at {kept[0][1]:.2f} m, other explanations at "
         f"{others}; the walkers started in each (see the ground's posterior)"
     )
 
@@ -139,7 +143,7 @@ def describe_modes(modes) -> str | None:
         return None
     (chosen, alternative), (p_chosen, p_alt) = modes["grounds"], modes["posterior_probability"]
     return (
-        f"ground ambiguous in the posterior: P = {p_chosen:.2f} at the analysis's ground "
+        f"{GROUND_MODES_FLAG}: P = {p_chosen:.2f} at the analysis's ground "
         f"({chosen:.2f} m), {p_alt:.2f} at its alternative ({alternative:.2f} m); the "
         "ground's quantiles span both"
     )

@@ -8,6 +8,7 @@ import numpy as np
 
 import lidarinv
 
+from .flags import is_warning
 from .prior_learning import describe_prior_dominated, prior_dominated
 from .realisation_spread import describe_spread, largest_spread
 
@@ -45,7 +46,9 @@ class InversionResult:
         sampled parameter its posterior against its prior (contraction, KS distance,
         whether prior-dominated: :func:`.prior_learning.prior_learning`).
     flags : list of str
-        Warnings (non-convergence, low acceptance, ...).
+        What the run found to say: warnings (:attr:`warnings`: a misfit, non-convergence,
+        ...) and notes (the instrument model's error raised, low acceptance, ...), each
+        beginning with its kind's words (:data:`.flags.FLAG_KINDS`).
     profile_heights : array (m)
         Heights above ground of the crown-volume profile.
     profile : array (5, n_heights)
@@ -129,6 +132,13 @@ class InversionResult:
         """The parameters whose posterior stayed at their prior (:mod:`.prior_learning`): their
         posterior quantiles describe the prior, not the stand."""
         return prior_dominated(self.diagnostics.get("prior_learning"))
+
+    @property
+    def warnings(self) -> list:
+        """The flags that warn that the reported quantities may be wrong
+        (:func:`.flags.is_warning`); a result without them is clean. The other flags say
+        how the answer was reached."""
+        return [flag for flag in self.flags if is_warning(flag)]
 
     @property
     def quantity_names(self) -> tuple:
@@ -234,7 +244,7 @@ class InversionResult:
             lines.append(_model_error_line(d))
         if "cohorts" in d:
             lines.append(_stand_model_line(d["cohorts"]))
-        lines += [f"warning: {flag}" for flag in self.flags]
+        lines += [f"{'warning' if is_warning(f) else 'note'}: {f}" for f in self.flags]
         return "\n".join(lines)
 
     def summary_row(self) -> dict:
@@ -258,6 +268,7 @@ class InversionResult:
             "cohorts": int((self.settings or {}).get("cohorts", 1)),
             "prior_dominated": "; ".join(self.prior_dominated),
             "flags": "; ".join(self.flags),
+            "warned": bool(self.warnings),
         }
         canopy = self.footprint_canopy()
         if canopy is not None:

@@ -20,6 +20,9 @@ from .moves.chain_t import fit_moves, record_fit, refit_on_resume, worth_refitti
 from .start import Mode, distinct_modes, find_map, initial_ball, laplace_covariance
 from .stopping import STOP_RULES, StopRule, coordinates_monitor, quantity_diagnostics
 
+#: How the flag of a run that the step cap stopped begins.
+NOT_CONVERGED_FLAG = "not converged at the step cap"
+
 
 @dataclass(frozen=True)
 class SamplerSettings:
@@ -537,4 +540,4 @@ def _not_converged(steps, s: SamplerSettings, tau, shortfalls, quantities) -> st
             f"; the reported 5/50/95 % quantiles' Monte Carlo error reaches "
             f"{errors[worst]:.2f} posterior sd ({worst})"
         )
-    return f"not converged at the step cap ({steps} steps): {failed}"
+    return f"{NOT_CONVERGED_FLAG} ({steps} steps): {failed}"

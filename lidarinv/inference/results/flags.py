@@ -1,0 +1,114 @@
+"""What a result's flags say: which warn that the answer may be wrong, and which only say
+how it was reached.
+
+Every flag an inversion raises begins with the words of its kind (:data:`FLAG_KINDS`).
+A *warning* tells the user not to take the reported quantities as they stand: the model
+misses part of the waveform, the footprint's canopy height contradicts its own waveform,
+the ground may be another, or the run stopped at its step cap. The other kinds are notes:
+how the answer was reached (the instrument model's error raised, a few slow walkers, the
+realisations' seed), on many shots whose answers are right. A result without warnings is
+what the validation pages call clean (``studies/real_inversion.py``: far-off answers
+without a warning are the ones that pass as clean).
+"""
+
+from dataclasses import dataclass
+
+from ...observe.terrain import TERRAIN_FLAG
+from ..passes.ambiguity import COMPETING_GROUNDS_NOTE, GROUND_MODES_FLAG
+from ..passes.hidden_ground import HIDDEN_GROUND_FLAG
+from ..passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
+from ..sampling.sampler import NOT_CONVERGED_FLAG
+from .footprint import CANOPY_HEIGHT_FLAG
+
+
+@dataclass(frozen=True)
+class FlagKind:
+    """One kind of flag.
+
+    Attributes
+    ----------
+    warning : bool
+        Whether it says the reported quantities may be wrong.
+    meaning : str
+        What it says, and what to take instead where there is something.
+    """
+
+    warning: bool
+    meaning: str
+
+
+#: Kinds of flag by the words they begin with.
+FLAG_KINDS = {
+    MISFIT_FLAG: FlagKind(
+        True,
+        "the model does not explain part of the waveform (the flag names the heights): "
+        "quantities that depend on that part, e.g. a mid-storey or emergents two storeys "
+        "cannot hold, are not the footprint's",
+    ),
+    CANOPY_HEIGHT_FLAG: FlagKind(
+        True,
+        "the footprint's tallest stem, drawn from the stand, stands well below the RH98 of "
+        "the footprint's own waveform: take rh98_footprint as the canopy's top",
+    ),
+    GROUND_MODES_FLAG: FlagKind(
+        True,
+        "the posterior keeps two grounds (the flag gives their elevations and "
+        "probabilities): every height above ground depends on which is right",
+    ),
+    COMPETING_GROUNDS_NOTE: FlagKind(
+        False,
+        "other grounds explained the waveform nearly as well at the start, and walkers "
+        "started at each; the posterior's ground says which it kept",
+    ),
+    HIDDEN_GROUND_FLAG: FlagKind(
+        True,
+        "the lowest return may be the understory's over a ground too weak to show: the "
+        "ground may lie lower and the heights be larger",
+    ),
+    TERRAIN_FLAG: FlagKind(
+        True,
+        "the ground departs from the terrain its neighbours along the track show",
+    ),
+    NOT_CONVERGED_FLAG: FlagKind(
+        True,
+        "the run stopped at its step cap before the stopping rule passed (the flag names "
+        "what failed and the quantiles' Monte Carlo error)",
+    ),
+    MODEL_ERROR_FLAG: FlagKind(
+        False,
+        "the residuals at the MAP exceeded the noise and the simulated discrepancy, so the "
+        "instrument model's error was raised: the intervals widen to hold them",
+    ),
+    "stand model undecided": FlagKind(
+        False, "one and two storeys explain the waveform about as well (BIC)"
+    ),
+    "low acceptance": FlagKind(False, "some walkers accepted fewer than 5 % of their moves"),
+    "MAP optimiser did not report convergence": FlagKind(
+        False, "the MAP search, which starts the walkers, ended at its iteration limit"
+    ),
+    "another draw of the discrepancy's": FlagKind(
+        False,
+        "another seed for the discrepancy's realisations would move a quantity's quantiles "
+        "by more than the flag's share of a posterior sd",
+    ),
+    "realisation spread not measured": FlagKind(
+        False, "the realisations' bootstrap could not be run"
+    ),
+    "per-bin discrepancy used instead of realisations": FlagKind(
+        False, "the window cannot carry the simulated covariance (the flag says why)"
+    ),
+}
+
+
+def flag_kind(flag: str) -> str | None:
+    """The key of :data:`FLAG_KINDS` that ``flag`` begins with (the longest, where more
+    than one does); None for a flag of no known kind (e.g. one a caller appended)."""
+    known = [kind for kind in FLAG_KINDS if flag.startswith(kind)]
+    return max(known, key=len) if known else None
+
+
+def is_warning(flag: str) -> bool:
+    """Whether ``flag`` warns that the reported quantities may be wrong
+    (:attr:`FlagKind.warning`); False for a flag of no known kind."""
+    kind = flag_kind(flag)
+    return kind is not None and FLAG_KINDS[kind].warning
