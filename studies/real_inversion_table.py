@@ -4,16 +4,19 @@ per-shot figure and table."""
 
 import numpy as np
 
-from lidarinv.inference.results.flags import is_warning
+from lidarinv.inference.results.flags import flag_kind, is_warning
 
 #: The posterior quantities a row keeps (5/50/95 %), as ``real_inversion`` records them.
 ROW_QUANTITIES = ("ground", "rh98", "rh98_footprint", "rh98_product", "canopy_height")
 
 
 def flag_label(flag: str) -> str:
-    """A flag's words before its first colon or parenthesis, for a table (``"misfit"``,
-    ``"not converged at the step cap"``, ``"canopy height below the waveform's RH98"``)."""
-    return flag.split(":")[0].split(" (")[0].strip()
+    """A flag's label for a table: its kind's words
+    (:data:`lidarinv.inference.results.flags.FLAG_KINDS`: ``"misfit"``, ``"low
+    acceptance"``, ``"not converged at the step cap"``), else its words before the first
+    colon or parenthesis."""
+    kind = flag_kind(flag)
+    return kind if kind is not None else flag.split(":")[0].split(" (")[0].strip()
 
 
 def warned(flags) -> bool:
@@ -29,7 +32,8 @@ def _rounded(value, digits=2):
 
 def shot_rows(records) -> list:
     """One row per inverted shot: its number and flight line, the storeys chosen, whether
-    it converged, its CPU time, the product's ground and RH98, the posterior's 5/50/95 %
+    it converged, its CPU time, the product's ground and RH98 (as published, and moved into
+    the model's convention: ``real_inversion.convention_offset``), the posterior's 5/50/95 %
     of :data:`ROW_QUANTITIES` (m, to the cm), its flags' labels (:func:`flag_label`) and
     whether one of them is a warning (:func:`warned`).
 
@@ -53,7 +57,10 @@ def shot_rows(records) -> list:
                 "cohorts": r.get("cohorts"),
                 "converged": bool(r["converged"]),
                 "cpu_seconds": _rounded(r.get("cpu_seconds", np.nan), 1),
-                "product": {k: _rounded(r["product"][k]) for k in ("ground", "rh98")},
+                "product": {
+                    k: _rounded(r["product"].get(k, np.nan))
+                    for k in ("ground", "rh98", "rh98_model_convention")
+                },
                 "posterior": {
                     k: [_rounded(v) for v in posterior[k]] for k in ROW_QUANTITIES if k in posterior
                 },

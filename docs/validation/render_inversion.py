@@ -14,8 +14,8 @@ TABLE_ROWS = 40
 
 
 def per_shot_section(rows, figures: Path, key: str, instrument: str) -> str:
-    """The figure of posterior RH98 against the product's, shot by shot, and, for up to
-    :data:`TABLE_ROWS` shots, their table."""
+    """The figure of posterior RH98 against the product's (moved into the model's
+    convention), shot by shot, and, for up to :data:`TABLE_ROWS` shots, their table."""
     if not rows:
         return ""
     name = f"{key}-{instrument}-rh98.png"
@@ -42,9 +42,10 @@ def _table(rows, instrument) -> str:
         "shot",
         "storeys",
         f"{product} RH98 (m)",
+        f"RH98 in {product}'s convention (m)",
+        f"{product} RH98 in the model's convention (m)",
         "model RH98, 5/50/95 % (m)",
         "footprint RH98 (m)",
-        f"RH98 in {product}'s convention (m)",
         f"ground − {product}'s (m)",
         "converged",
         "flags",
@@ -62,9 +63,10 @@ def _table(rows, instrument) -> str:
                 row["shot"],
                 row["cohorts"],
                 row["product"]["rh98"],
+                _median(row, "rh98_product"),
+                row["product"].get("rh98_model_convention"),
                 "–" if model is None else "/".join(_cell_m(v) for v in model),
                 _median(row, "rh98_footprint"),
-                _median(row, "rh98_product"),
                 difference,
                 row["converged"],
                 "; ".join(row["flags"]) or "–",
@@ -74,13 +76,21 @@ def _table(rows, instrument) -> str:
     return table(header, body, title)
 
 
+def _model_convention(row):
+    """The product's RH98 moved into the model's convention (as published in rows that
+    lack it)."""
+    product = row["product"]
+    moved = product.get("rh98_model_convention")
+    return product["rh98"] if moved is None else moved
+
+
 def _cell_m(value) -> str:
     return "–" if value is None else f"{value:.1f}"
 
 
 def _rh98_figure(rows, path: Path, instrument) -> bool:
     """Model and footprint RH98 (median, 90 % interval for the model) against the
-    product's; orange where a warning flag is on (the row's ``warned``:
+    product's in the same convention; orange where a warning flag is on (the row's ``warned``:
     :attr:`lidarinv.inference.InversionResult.warnings`), hollow where the run did not
     converge.
     False where no shot has a product RH98."""
@@ -89,10 +99,10 @@ def _rh98_figure(rows, path: Path, instrument) -> bool:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = [r for r in rows if r["product"]["rh98"] is not None and "rh98" in r["posterior"]]
+    rows = [r for r in rows if _model_convention(r) is not None and "rh98" in r["posterior"]]
     if not rows:
         return False
-    x = np.array([r["product"]["rh98"] for r in rows], float)
+    x = np.array([_model_convention(r) for r in rows], float)
     model = np.array([[np.nan if v is None else v for v in r["posterior"]["rh98"]] for r in rows])
     footprint = np.array([_median(r, "rh98_footprint") for r in rows], float)
     colour = np.where([r.get("warned", False) for r in rows], "tab:orange", "tab:blue")
@@ -110,7 +120,7 @@ def _rh98_figure(rows, path: Path, instrument) -> bool:
     values = np.concatenate([x, model[np.isfinite(model)], footprint[np.isfinite(footprint)]])
     limits = [values.min() - 1.0, values.max() + 1.0]
     ax.plot(limits, limits, "k-", lw=0.6)
-    ax.set_xlabel(f"{instrument.upper()} product RH98 (m)")
+    ax.set_xlabel(f"{instrument.upper()} product RH98, in the model's convention (m)")
     ax.set_ylabel("posterior RH98 (m): median; the model's 90 % interval")
     ax.set_title(
         "blue: no warning; orange: a warning flag (misfit, canopy height, ground, step\n"

@@ -15,7 +15,7 @@ def _record(shot, rh98, flags, converged=True):
         "converged": converged,
         "cpu_seconds": 301.27,
         "flags": flags,
-        "product": {"ground": 30.0, "rh98": 44.0, "cover": np.nan},
+        "product": {"ground": 30.0, "rh98": 44.0, "cover": np.nan, "rh98_model_convention": 44.0},
         "posterior": {
             "ground": [29.9, 30.1, 30.3],
             "rh98": [rh98 - 2.0, rh98, rh98 + 2.0],
@@ -67,8 +67,6 @@ def test_far_off_answers_count_apart_when_they_carry_no_warning():
     quiet = _record(1, 20.0, ["model error raised: ..."])  # 24 m below the product
     flagged = _record(2, 20.0, ["misfit: between 11.8 and 34.0 m ..."])
     close = _record(3, 44.0, [])
-    for r in (quiet, flagged, close):
-        r["product"]["rh98_model_convention"] = 44.0
     stats = real_inversion.statistics([quiet, flagged, close], "lvis")
     far = stats["rh98_model_convention"]
     assert far["far_off"] == 2 and far["far_off_unwarned"] == 1
