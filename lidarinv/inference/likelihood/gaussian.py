@@ -25,6 +25,9 @@ from .marginal import (
 )
 from .predictive import gaussian_replicates, recorded
 
+#: How the note of a likelihood that took the read noise as white begins.
+WHITE_NOISE_NOTE = "read noise taken as white"
+
 
 class ShotLikelihood:
     """The likelihood of one shot's window, for rows of model waveforms.
@@ -204,7 +207,7 @@ class ShotLikelihood:
         """Where the likelihood had to simplify the shot's noise, what it did."""
         if self.correlation_obstacle is None:
             return []
-        return [f"read noise taken as white: {self.correlation_obstacle}"]
+        return [f"{WHITE_NOISE_NOTE}: {self.correlation_obstacle}"]
 
     def predictive_moments(self, signal, values) -> tuple:
         """Mean and per-bin variance of the samples given rows of model waveforms.

@@ -14,6 +14,7 @@ without a warning are the ones that pass as clean).
 from dataclasses import dataclass
 
 from ...observe.terrain import TERRAIN_FLAG
+from ..likelihood.gaussian import WHITE_NOISE_NOTE
 from ..passes.ambiguity import COMPETING_GROUNDS_NOTE, GROUND_MODES_FLAG
 from ..passes.hidden_ground import HIDDEN_GROUND_FLAG
 from ..passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
@@ -93,6 +94,11 @@ FLAG_KINDS = {
     ),
     "realisation spread not measured": FlagKind(
         False, "the realisations' bootstrap could not be run"
+    ),
+    WHITE_NOISE_NOTE: FlagKind(
+        False,
+        "the window holds censored or saturated samples (or another obstacle the note "
+        "gives), so the read noise's correlation was left out",
     ),
     "per-bin discrepancy used instead of realisations": FlagKind(
         False, "the window cannot carry the simulated covariance (the flag says why)"

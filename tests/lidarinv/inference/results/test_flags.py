@@ -5,6 +5,7 @@ import numpy as np
 from tiny_results import tiny_result
 
 from lidarinv.cli.invert import headline
+from lidarinv.inference.likelihood.gaussian import WHITE_NOISE_NOTE
 from lidarinv.inference.passes.ambiguity import describe, describe_modes
 from lidarinv.inference.passes.cohorts import CohortChoice
 from lidarinv.inference.passes.model_error import describe_floor, describe_misfit
@@ -36,6 +37,7 @@ def _written_flags():
         (describe_floor(0.3, 0.1), False),
         (undecided.note(), False),
         ("low acceptance in 3 walker(s)", False),
+        (f"{WHITE_NOISE_NOTE}: the window holds censored or saturated samples", False),
         ("an instrument the caller chose", False),  # no known kind
     ]
 
