@@ -29,13 +29,18 @@ from .passes.model_error import (
     exceeds_ceiling,
     shot_floor,
 )
-from .passes.realisations import realisation_covariance
+from .passes.realisations import PER_BIN_NOTE, realisation_covariance
 from .problem import InversionProblem, build_problem, fixed_discrepancy
 from .results.collect import collect_result
-from .results.realisation_spread import DiscrepancyDraws, add_realisation_spread
+from .results.realisation_spread import (
+    SPREAD_NOT_MEASURED_NOTE,
+    DiscrepancyDraws,
+    add_realisation_spread,
+)
 from .results.reported import reported_monitor
 from .results.result import InversionResult
 from .sampling.sampler import run_sampler
+from .sampling.start import MAP_NOT_CONVERGED_NOTE
 from .settings import AUTO, InversionSettings
 
 
@@ -237,9 +242,9 @@ def _prepare(observation, settings, rng) -> Preparation:
                 simulation.residuals, settings.realisations.shrinkage, diagonal
             )
             if not estimate.converged:
-                prepared.notes.append("MAP optimiser did not report convergence")
+                prepared.notes.append(MAP_NOT_CONVERGED_NOTE)
         else:
-            prepared.notes.append(f"per-bin discrepancy used instead of realisations: {obstacle}")
+            prepared.notes.append(f"{PER_BIN_NOTE}: {obstacle}")
     prepared.problem = problem
     if estimate is not None:  # the pilot's MAP, not searched twice, and its rivals
         kept = competing_grounds(
@@ -313,5 +318,5 @@ def _sample(prepared, rng, sampler, progress, backend) -> InversionResult:
         try:  # a diagnostic: the samples drawn are kept whatever it meets
             add_realisation_spread(result, problem, prepared.discrepancy_draws, rng, resamples)
         except (ValueError, np.linalg.LinAlgError) as error:
-            result.flags.append(f"realisation spread not measured: {error}")
+            result.flags.append(f"{SPREAD_NOT_MEASURED_NOTE}: {error}")
     return result

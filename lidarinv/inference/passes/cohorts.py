@@ -27,6 +27,9 @@ BIC_UNDECIDED = 2.0
 #: A shorter canopy keeps one cohort, whose understory already holds a low layer.
 STOREYS_RESOLVED_PULSE_WIDTHS = 3.0
 
+#: How the note of a shot that one and two storeys explain about as well begins.
+UNDECIDED_NOTE = "stand model undecided"
+
 
 @dataclass(frozen=True)
 class CohortChoice:
@@ -61,7 +64,7 @@ class CohortChoice:
         if not self.undecided:
             return None
         return (
-            f"stand model undecided: BIC {self.bic[1]:.1f} with one cohort, {self.bic[2]:.1f} "
+            f"{UNDECIDED_NOTE}: BIC {self.bic[1]:.1f} with one cohort, {self.bic[2]:.1f} "
             "with two at their MAPs; the data leave both explanations"
         )
 

@@ -47,6 +47,10 @@ from ..sampling.sampler import SamplerSettings
 from ..sampling.start import Mode, find_map, initial_ball
 from ..settings import RealisationSettings
 
+#: How the note of a window that cannot carry the simulated covariance begins (the
+#: per-bin discrepancy is used instead).
+PER_BIN_NOTE = "per-bin discrepancy used instead of realisations"
+
 
 def realisation_residuals(
     log_posterior: LogPosterior, instrument, x, rng, plot_diameters=3.0, accuracy=None

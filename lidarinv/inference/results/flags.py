@@ -16,10 +16,14 @@ from dataclasses import dataclass
 from ...observe.terrain import TERRAIN_FLAG
 from ..likelihood.gaussian import WHITE_NOISE_NOTE
 from ..passes.ambiguity import COMPETING_GROUNDS_NOTE, GROUND_MODES_FLAG
+from ..passes.cohorts import UNDECIDED_NOTE
 from ..passes.hidden_ground import HIDDEN_GROUND_FLAG
 from ..passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
-from ..sampling.sampler import NOT_CONVERGED_FLAG
+from ..passes.realisations import PER_BIN_NOTE
+from ..sampling.sampler import LOW_ACCEPTANCE_NOTE, NOT_CONVERGED_FLAG
+from ..sampling.start import MAP_NOT_CONVERGED_NOTE
 from .footprint import CANOPY_HEIGHT_FLAG
+from .realisation_spread import SEED_SPREAD_NOTE, SPREAD_NOT_MEASURED_NOTE
 
 
 @dataclass(frozen=True)
@@ -80,27 +84,23 @@ FLAG_KINDS = {
         "the residuals at the MAP exceeded the noise and the simulated discrepancy, so the "
         "instrument model's error was raised: the intervals widen to hold them",
     ),
-    "stand model undecided": FlagKind(
-        False, "one and two storeys explain the waveform about as well (BIC)"
-    ),
-    "low acceptance": FlagKind(False, "some walkers accepted fewer than 5 % of their moves"),
-    "MAP optimiser did not report convergence": FlagKind(
+    UNDECIDED_NOTE: FlagKind(False, "one and two storeys explain the waveform about as well (BIC)"),
+    LOW_ACCEPTANCE_NOTE: FlagKind(False, "some walkers accepted fewer than 5 % of their moves"),
+    MAP_NOT_CONVERGED_NOTE: FlagKind(
         False, "the MAP search, which starts the walkers, ended at its iteration limit"
     ),
-    "another draw of the discrepancy's": FlagKind(
+    SEED_SPREAD_NOTE: FlagKind(
         False,
         "another seed for the discrepancy's realisations would move a quantity's quantiles "
         "by more than the flag's share of a posterior sd",
     ),
-    "realisation spread not measured": FlagKind(
-        False, "the realisations' bootstrap could not be run"
-    ),
+    SPREAD_NOT_MEASURED_NOTE: FlagKind(False, "the realisations' bootstrap could not be run"),
     WHITE_NOISE_NOTE: FlagKind(
         False,
         "the window holds censored or saturated samples (or another obstacle the note "
         "gives), so the read noise's correlation was left out",
     ),
-    "per-bin discrepancy used instead of realisations": FlagKind(
+    PER_BIN_NOTE: FlagKind(
         False, "the window cannot carry the simulated covariance (the flag says why)"
     ),
 }

@@ -26,6 +26,11 @@ from .reported import REPORTED
 #: The reported quantiles (%) whose spread is measured.
 SPREAD_QUANTILES = (5.0, 50.0, 95.0)
 
+#: How the note of quantiles that another draw of the realisations would move begins.
+SEED_SPREAD_NOTE = "another draw of the discrepancy's"
+#: How the note of a bootstrap of the realisations that could not run begins.
+SPREAD_NOT_MEASURED_NOTE = "realisation spread not measured"
+
 
 @dataclass(frozen=True)
 class DiscrepancyDraws:
@@ -181,7 +186,7 @@ def add_realisation_spread(result, problem, draws: DiscrepancyDraws, rng, resamp
     if moved:
         worst = max(moved, key=moved.get)
         result.flags.append(
-            f"another draw of the discrepancy's {draws.residuals.shape[0]} realisations may "
+            f"{SEED_SPREAD_NOTE} {draws.residuals.shape[0]} realisations may "
             f"move {worst}'s quantiles by {moved[worst]:.2f} posterior sd (bootstrap): the "
             "answer depends on the seed; raise RealisationSettings.count"
         )

@@ -17,11 +17,20 @@ from tqdm.auto import tqdm
 from .ensemble import BatchedSampler, sample_in_chunks
 from .moves import MOVES
 from .moves.chain_t import fit_moves, record_fit, refit_on_resume, worth_refitting
-from .start import Mode, distinct_modes, find_map, initial_ball, laplace_covariance
+from .start import (
+    MAP_NOT_CONVERGED_NOTE,
+    Mode,
+    distinct_modes,
+    find_map,
+    initial_ball,
+    laplace_covariance,
+)
 from .stopping import STOP_RULES, StopRule, coordinates_monitor, quantity_diagnostics
 
 #: How the flag of a run that the step cap stopped begins.
 NOT_CONVERGED_FLAG = "not converged at the step cap"
+#: How the note of walkers that accepted fewer than 5 % of their moves begins.
+LOW_ACCEPTANCE_NOTE = "low acceptance"
 
 
 @dataclass(frozen=True)
@@ -342,7 +351,7 @@ def run_sampler(
             estimate = find_map(log_prob, space, rng, s)
             modes = distinct_modes(log_prob, estimate, s.mode_window)
             if not estimate.converged:
-                flags.append("MAP optimiser did not report convergence")
+                flags.append(MAP_NOT_CONVERGED_NOTE)
         else:
             centres = np.atleast_2d(np.asarray(start, float))
             values = log_prob(centres)
@@ -432,7 +441,7 @@ def run_sampler(
         flags.append(_not_converged(sampler.iteration, s, tau, shortfalls, quantities))
     acceptance = sampler.acceptance_fraction
     if np.any(acceptance < 0.05):
-        flags.append(f"low acceptance in {int(np.sum(acceptance < 0.05))} walker(s)")
+        flags.append(f"{LOW_ACCEPTANCE_NOTE} in {int(np.sum(acceptance < 0.05))} walker(s)")
     return SamplerRun(
         chain=sampler.get_chain(),
         log_prob=sampler.get_log_prob(),

@@ -19,6 +19,9 @@ _PENALTY = 1e12
 #: better one are not polished: they would most likely end in the same optimum.
 POLISH_SPACING = 0.25
 
+#: How the note of a MAP search that ended at its iteration limit begins.
+MAP_NOT_CONVERGED_NOTE = "MAP optimiser did not report convergence"
+
 
 @dataclass
 class MapEstimate:
