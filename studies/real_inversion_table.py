@@ -58,7 +58,7 @@ def shot_rows(records) -> list:
                 "converged": bool(r["converged"]),
                 "cpu_seconds": _rounded(r.get("cpu_seconds", np.nan), 1),
                 "product": {
-                    k: _rounded(r["product"].get(k, np.nan))
+                    k: _rounded(r.get("product", {}).get(k, np.nan))
                     for k in ("ground", "rh98", "rh98_model_convention")
                 },
                 "posterior": {

@@ -117,10 +117,15 @@ def find_map(log_prob, space, rng, settings, seeds=None) -> MapEstimate:
         options={"maxiter": settings.screen_iterations},
     )
     screened.sort(key=lambda result: result.fun)
-    starts = [result.x for result in _spread_out(screened, settings.polish, POLISH_SPACING)]
-    polished = minimize_in_lockstep(objective, starts, method="L-BFGS-B", options={"maxiter": 400})
+    chosen = _spread_out(screened, settings.polish, POLISH_SPACING)
+    polished = minimize_in_lockstep(
+        objective, [result.x for result in chosen], method="L-BFGS-B", options={"maxiter": 400}
+    )
     optima = []
-    for result in polished:
+    for start, result in zip(chosen, polished, strict=True):
+        # a polish that ends worse than it began (a line search lost outside the support
+        # ends ABNORMAL at the penalty) keeps its start
+        result = result if result.fun <= start.fun else start
         value = -float(result.fun)
         if result.fun < _PENALTY:
             optima.append((result.x, value))

@@ -205,6 +205,32 @@ def test_a_seed_reaches_an_optimum_the_prior_draws_miss():
     np.testing.assert_allclose(at(seeded), peak, atol=0.01)
 
 
+def test_a_polish_lost_outside_the_support_keeps_its_start(monkeypatch):
+    """A polish that ends worse than it began (L-BFGS-B's line search lost where the
+    posterior is −inf ends at the penalty) keeps the screened point: the search never
+    returns worse than a point it screened."""
+    from scipy.optimize import OptimizeResult
+
+    from lidarinv.inference.sampling import start
+
+    rng = np.random.default_rng(3)
+    space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
+    toy = LinearGaussianToy(space, rng)
+    screen = start.minimize_in_lockstep
+
+    def lost_polish(objective, starts, method, options):
+        if options["maxiter"] == SamplerSettings().screen_iterations:
+            return screen(objective, starts, method=method, options=options)
+        lost = np.full(len(starts[0]), 30.0)
+        return [OptimizeResult(x=lost, fun=start._PENALTY, success=False) for _ in starts]
+
+    monkeypatch.setattr(start, "minimize_in_lockstep", lost_polish)
+    estimate = find_map(lambda u: toy(u)[:, 0], space, rng, SamplerSettings(starts=2))
+    x, _ = space.from_unbounded(estimate.u[None, :])
+    assert np.all(np.isfinite(x)) and estimate.optima
+    np.testing.assert_allclose(x[0], toy.mean, atol=0.5)  # the screened optimum, not lost
+
+
 def test_short_run_is_flagged_not_converged():
     rng = np.random.default_rng(5)
     space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
