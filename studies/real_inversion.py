@@ -206,7 +206,7 @@ def _cover_name(result):
     return None
 
 
-def statistics(records, instrument) -> dict:
+def statistics(records, instrument, per_shot=True) -> dict:
     rows = [r for r in records if r["instrument"] == instrument]
     done = [r for r in rows if "posterior" in r]
     out = {
@@ -262,9 +262,9 @@ def statistics(records, instrument) -> dict:
             for r in done
             if "reference" in r
         ],
-        # one compact row a shot: the validation page's per-shot figure and table
-        "per_shot": shot_rows(done),
     }
+    if per_shot:  # one compact row a shot: the validation page's per-shot figure and table
+        out["per_shot"] = shot_rows(done)
     for q, (name, key) in QUANTITIES.items():
         triples = [
             (r["posterior"][name], r["product"][key], r)
@@ -326,8 +326,7 @@ def flight_lines(records, out=None) -> dict:
     lines = {}
     for lfid in sorted({r["lfid"] for r in records if r.get("lfid") is not None}):
         members = [r for r in records if r.get("lfid") == lfid]
-        stats = statistics(members, "lvis")
-        del stats["per_shot"]  # the instrument's statistics hold every shot's row
+        stats = statistics(members, "lvis", per_shot=False)  # the instrument's hold them
         rh98 = [r["product"]["rh98"] for r in members if np.isfinite(r["product"]["rh98"])]
         stats["product_rh98_median"] = float(np.median(rh98)) if rh98 else None
         done = [r for r in members if "posterior" in r]

@@ -4,7 +4,7 @@ per-shot figure and table."""
 
 import numpy as np
 
-from lidarinv.inference.results.flags import flag_kind, is_warning
+from lidarinv.inference.results.flags import flag_kind, warnings_among
 
 #: The posterior quantities a row keeps (5/50/95 %), as ``real_inversion`` records them.
 ROW_QUANTITIES = ("ground", "rh98", "rh98_footprint", "rh98_product", "canopy_height")
@@ -21,8 +21,8 @@ def flag_label(flag: str) -> str:
 
 def warned(flags) -> bool:
     """Whether any of ``flags`` warns that the answer may be wrong
-    (:func:`lidarinv.inference.results.flags.is_warning`)."""
-    return any(is_warning(f) for f in flags)
+    (:func:`lidarinv.inference.results.flags.warnings_among`)."""
+    return bool(warnings_among(flags))
 
 
 def _rounded(value, digits=2):

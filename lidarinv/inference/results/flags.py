@@ -118,3 +118,9 @@ def is_warning(flag: str) -> bool:
     (:attr:`FlagKind.warning`); False for a flag of no known kind."""
     kind = flag_kind(flag)
     return kind is not None and FLAG_KINDS[kind].warning
+
+
+def warnings_among(flags) -> list:
+    """The ``flags`` that are warnings (:func:`is_warning`), in their order: none for a
+    clean result."""
+    return [flag for flag in flags if is_warning(flag)]

@@ -8,7 +8,7 @@ import numpy as np
 
 import lidarinv
 
-from .flags import is_warning
+from .flags import is_warning, warnings_among
 from .prior_learning import describe_prior_dominated, prior_dominated
 from .realisation_spread import describe_spread, largest_spread
 
@@ -138,7 +138,7 @@ class InversionResult:
         """The flags that warn that the reported quantities may be wrong
         (:func:`.flags.is_warning`); a result without them is clean. The other flags say
         how the answer was reached."""
-        return [flag for flag in self.flags if is_warning(flag)]
+        return warnings_among(self.flags)
 
     @property
     def quantity_names(self) -> tuple:
