@@ -20,6 +20,7 @@ from .footprint import (
     excess_sigmas,
     footprint_bare,
     footprint_no_stem,
+    unseen_top_note,
 )
 from .local_misfit import describe_local_misfit, local_misfit, return_width_bins
 from .prior_learning import prior_learning, support_prior_draws
@@ -243,10 +244,18 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     seen = heights["rh98_footprint"]  # the footprint's own waveform, else the model's
     seen = seen if np.isfinite(seen).any() else derived["rh98"]
     derived[FOOTPRINT_BARE] = footprint_bare(problem, x, seen, canopy_sigmas)
-    height_note = canopy_height_note(
-        seen_canopy_height(derived[FOOTPRINT_TOP], derived), seen,
+    canopy_height, pulse_width = (
+        seen_canopy_height(derived[FOOTPRINT_TOP], derived),
         pulse_width_m(problem.instrument.pulse),
-    )  # fmt: skip
+    )
+    height_notes = [
+        canopy_height_note(canopy_height, seen, pulse_width, derived[FOOTPRINT_BARE]),
+        unseen_top_note(
+            canopy_height,
+            problem.analysis.signal_start - space.values(x)["ground_elevation"],
+            pulse_width,
+        ),
+    ]
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
     terms = post.evaluate(x[pick], keep_signal=True)
     good = np.isfinite(terms.log_posterior)
@@ -329,7 +338,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
         + post.likelihood.notes
         + _misfit_flags(fit)
         + describe_local_misfit(fit)
-        + [flag for flag in [describe_modes(modes), height_note] if flag],
+        + [flag for flag in [describe_modes(modes), *height_notes] if flag],
         profile_heights=profile_heights,
         profile=np.percentile(profile, QUANTILES, axis=0),
         axis=problem.window.axis,

@@ -241,7 +241,7 @@ CANOPY_HEIGHT_FLAG = "canopy height below the waveform's RH98"
 DISAGREEING_SHARE = 0.5
 
 
-def canopy_height_note(canopy_height, rh98, tolerance_m: float) -> str | None:
+def canopy_height_note(canopy_height, rh98, tolerance_m: float, bare=None) -> str | None:
     """The result's flag where most draws put the footprint's canopy height well below the
     RH98 of the draw's own waveform; None where they agree.
 
@@ -256,12 +256,17 @@ def canopy_height_note(canopy_height, rh98, tolerance_m: float) -> str | None:
         How far the stem may stand below the RH98 and still agree: a pulse width
         (:func:`.passes.ambiguity.pulse_width_m`), by which the pulse spreads the canopy's
         top return upward.
+    bare : array (n,), optional
+        :func:`footprint_bare` of each draw: a draw whose waveform shows nothing a bare
+        ground could not return agrees whatever its RH98, which is then the bare ground's
+        under the draw's broadening and may stand several metres up.
 
     Returns
     -------
     str or None
         The flag where more than :data:`DISAGREEING_SHARE` of the draws with both values
-        hold a stem more than ``tolerance_m`` below their RH98.
+        hold a stem more than ``tolerance_m`` below their RH98 under a canopy return the
+        waveform shows.
 
     Notes
     -----
@@ -272,18 +277,75 @@ def canopy_height_note(canopy_height, rh98, tolerance_m: float) -> str | None:
     forest, the draw then often holds only the lower storey's stems, and the canopy height
     falls far below the top the waveform shows.
     """
-    h, r = np.asarray(canopy_height, float), np.asarray(rh98, float)
-    both = np.isfinite(h) & np.isfinite(r)
-    if not both.any():
+    disagree = _disagreeing_draws(canopy_height, rh98, lambda h, r: h < r - tolerance_m, bare)
+    if disagree is None:
         return None
-    short = float(np.mean(h[both] < r[both] - tolerance_m))
-    if short <= DISAGREEING_SHARE:
-        return None
+    share, h, r = disagree
     return (
-        f"{CANOPY_HEIGHT_FLAG}: in {short:.0%} of draws the tallest stem "
+        f"{CANOPY_HEIGHT_FLAG}: in {share:.0%} of draws the tallest stem "
         f"within the footprint's disc stands more than {tolerance_m:.1f} m (a pulse width) "
-        f"below the RH98 of the draw's own waveform (medians {np.median(h[both]):.1f} m and "
-        f"{np.median(r[both]):.1f} m); the stem is drawn from the stand, not from this "
+        f"below the RH98 of the draw's own waveform (medians {h:.1f} m and "
+        f"{r:.1f} m); the stem is drawn from the stand, not from this "
         "waveform, and wide crowns reach into the disc from stems outside it: take "
         "rh98_footprint as the canopy's top"
     )
+
+
+#: How the result's flag of :func:`unseen_top_note` begins.
+UNSEEN_TOP_FLAG = "canopy height above the waveform's highest return"
+
+
+def unseen_top_note(canopy_height, signal_top, tolerance_m: float) -> str | None:
+    """The result's flag where most draws put the footprint's tallest stem well above the
+    highest return the recorded waveform shows; None otherwise.
+
+    Parameters
+    ----------
+    canopy_height : array (n,) (m)
+        The footprint's canopy height per draw (:func:`.result.seen_canopy_height`).
+    signal_top : array (n,) (m)
+        The recorded waveform's signal start (its highest bin above the noise floor,
+        :class:`lidarinv.observe.analyse.WaveformAnalysis`) above each draw's ground.
+    tolerance_m : float (m)
+        A pulse width (:func:`.passes.ambiguity.pulse_width_m`): the pulse spreads a
+        crown top's return upward, so the signal starts above the highest crown.
+
+    Returns
+    -------
+    str or None
+        The flag where more than :data:`DISAGREEING_SHARE` of the draws hold a stem more
+        than ``tolerance_m`` above the signal start.
+
+    Notes
+    -----
+    The tallest stem is drawn from the stand's law on the disc, not from this waveform. A
+    sampled stand whose height distribution reaches far above the canopy the waveform
+    shows (a wide height sd, or a tall storey the data cannot rule out) then puts stems
+    in the disc whose crowns no recorded return holds; the canopy height so reported is
+    the prior's, not the footprint's.
+    """
+    disagree = _disagreeing_draws(canopy_height, signal_top, lambda h, t: h > t + tolerance_m)
+    if disagree is None:
+        return None
+    share, h, top = disagree
+    return (
+        f"{UNSEEN_TOP_FLAG}: in {share:.0%} of draws the tallest stem within the "
+        f"footprint's disc stands more than {tolerance_m:.1f} m (a pulse width) above the "
+        f"signal start (medians {h:.1f} m and {top:.1f} m above the ground); no recorded "
+        "return holds that crown: take rh98_footprint as the canopy's top"
+    )
+
+
+def _disagreeing_draws(heights, reference, disagree, bare=None):
+    """(share, median height, median reference) of the draws where ``disagree(h, r)``
+    and the draw is not judged bare, over the draws with both values; None where that
+    share is at most :data:`DISAGREEING_SHARE` or no draw has both."""
+    h, r = np.asarray(heights, float), np.asarray(reference, float)
+    both = np.isfinite(h) & np.isfinite(r)
+    if not both.any():
+        return None
+    bare = np.zeros(h.shape) if bare is None else np.asarray(bare, float)
+    share = float(np.mean(disagree(h[both], r[both]) & (bare[both] != 1.0)))
+    if share <= DISAGREEING_SHARE:
+        return None
+    return share, float(np.median(h[both])), float(np.median(r[both]))

@@ -13,9 +13,11 @@ from lidarinv.inference import InversionSettings, build_problem, invert_shot
 from lidarinv.inference.model.tallest_stem import disc_area
 from lidarinv.inference.results.collect import footprint_top_height
 from lidarinv.inference.results.footprint import (
+    UNSEEN_TOP_FLAG,
     bare_ground_rh98,
     canopy_height_note,
     footprint_no_stem,
+    unseen_top_note,
 )
 from lidarinv.inference.sampling import SamplerSettings
 from lidarinv.observe.observation import Observation
@@ -180,3 +182,27 @@ def test_a_sparse_tall_storey_missing_from_the_disc_is_flagged():
     bare = np.zeros(n)  # no canopy seen: RH98 is the bare ground's, a pulse high
     assert canopy_height_note(bare, np.full(n, 1.2), tolerance_m=2.3) is None
     assert canopy_height_note(np.full(n, np.nan), rh98, tolerance_m=2.3) is None
+    # a waveform judged bare under a broadened ground: RH98 5 m up, nothing a bare ground
+    # could not return, and no stem the canopy height counts
+    judged_bare = rng.uniform(size=n) < 0.8
+    broadened = np.full(n, 5.3)
+    no_stem = np.where(judged_bare, 0.0, 5.0)
+    assert canopy_height_note(no_stem, broadened, 2.3) is not None  # without the judgement
+    assert canopy_height_note(no_stem, broadened, 2.3, bare=judged_bare) is None
+
+
+def test_a_stem_above_every_recorded_return_is_flagged():
+    """Draws whose tallest stem stands 8 m above the waveform's signal start (a wide
+    height distribution the data cannot rule out) are flagged; stems at or just under
+    the signal start, within a pulse width above it, or on a bare disc (0 m) are not."""
+    rng = np.random.default_rng(3)
+    n = 2000
+    signal_top = rng.normal(43.0, 0.3, n)  # the signal start above each draw's ground
+    unseen = rng.normal(51.0, 1.0, n)
+    note = unseen_top_note(unseen, signal_top, tolerance_m=2.3)
+    assert note is not None and note.startswith(UNSEEN_TOP_FLAG) and "100% of draws" in note
+    assert unseen_top_note(rng.normal(41.0, 1.0, n), signal_top, 2.3) is None
+    assert unseen_top_note(signal_top + 1.5, signal_top, 2.3) is None  # the pulse's spread
+    assert unseen_top_note(np.zeros(n), signal_top, 2.3) is None
+    half = np.where(rng.uniform(size=n) < 0.4, unseen, 40.0)  # 40 % above: not most
+    assert unseen_top_note(half, signal_top, 2.3) is None
