@@ -23,10 +23,10 @@ import numpy as np
 
 from ..backends import AVAILABLE, jit
 from ..crowns import CROWN_SHAPES, SHAPE_NAMES
-from .column_grid import ColumnGrid, CrownSet, FootprintSums, crown_node_ranges
+from .column_grid import ColumnGrid, CrownSet, FootprintSums
 from .gap import LayerGrid, layer_integral
 
-__all__ = ["AVAILABLE", "footprint_profiles", "ground_gap"]
+__all__ = ["AVAILABLE", "crown_node_ranges", "footprint_profiles", "ground_gap"]
 
 #: Shape codes, in the order of :data:`forward.crowns.SHAPE_NAMES`.
 _CONE, _ELLIPSOID, _HEMI_ELLIPSOID, _CYLINDER = (
@@ -334,6 +334,62 @@ def _ground_gap(
                 _add_kink(ground, z_ground * inv_h - ground_first, weights[i] * gap)
         total += weights[i] * row
     return total, ground[:n_ground]
+
+
+#: Most buckets per node of :func:`crown_node_ranges`' lookup table.
+_BUCKETS_PER_NODE = 8
+
+
+def crown_node_ranges(grid: ColumnGrid, crowns: CrownSet):
+    """Compiled :func:`forward.explicit.column_grid.crown_node_ranges` (same arguments, same
+    results).
+
+    The nodes are few and the crowns of a realised stand many (thousands of small crowns
+    in a dense draw): each crown edge is found from a table of the nodes over equal
+    buckets of the axis, then stepped to the exact node, in place of numpy's binary
+    search per key (about ten times its speed on 13 000 crowns).
+    """
+    f64 = np.ascontiguousarray
+    return _crown_node_ranges(
+        f64(grid.nodes, float), *(f64(a, float) for a in (crowns.x, crowns.y, crowns.radius))
+    )
+
+
+@jit
+def _crown_node_ranges(nodes, x, y, radius):
+    m = nodes.size
+    low, span = nodes[0], nodes[m - 1] - nodes[0]
+    closest = np.min(np.diff(nodes)) if m > 1 else 0.0
+    size = max(1, min(_BUCKETS_PER_NODE * m, int(span / closest) + 1)) if closest > 0 else 1
+    width = span / size if span > 0 else 1.0
+    below = np.empty(size + 1, np.int64)  # nodes at or below each bucket's lower edge
+    j = 0
+    for b in range(size + 1):
+        while j < m and nodes[j] <= low + b * width:
+            j += 1
+        below[b] = j
+    first = np.empty((x.size, 2), np.int64)
+    last = np.empty((x.size, 2), np.int64)
+    for i in range(x.size):
+        for axis in range(2):
+            centre = x[i] if axis == 0 else y[i]
+            first[i, axis] = _nodes_up_to(nodes, below, low, width, centre - radius[i], True)
+            last[i, axis] = _nodes_up_to(nodes, below, low, width, centre + radius[i], False) - 1
+    return first, last
+
+
+@jit(inline="always")
+def _nodes_up_to(nodes, below, low, width, value, inclusive):
+    """The number of nodes ≤ ``value`` (``inclusive``) or < it: numpy's searchsorted
+    ``side="right"`` or ``"left"``, from the bucket's count stepped to the exact node."""
+    m = nodes.size
+    b = min(max(int((value - low) / width), 0), below.size - 1) if value > low else 0
+    k = max(below[b] - 1, 0)
+    while k > 0 and (nodes[k - 1] > value if inclusive else nodes[k - 1] >= value):
+        k -= 1
+    while k < m and (nodes[k] <= value if inclusive else nodes[k] < value):
+        k += 1
+    return k
 
 
 def footprint_profiles(

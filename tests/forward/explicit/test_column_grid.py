@@ -6,7 +6,7 @@ import pytest
 
 import forward as fw
 from forward.explicit import column_kernel_numba
-from forward.explicit.column_grid import ColumnGrid
+from forward.explicit.column_grid import ColumnGrid, CrownSet, crown_node_ranges
 from lidarinv.testing.reference_model import reference_waveform
 
 needs_numba = pytest.mark.skipif(not column_kernel_numba.AVAILABLE, reason="needs numba")
@@ -67,6 +67,31 @@ def test_compiled_kernel_equals_numpy_reference(scene, rng):
     for name in ("gap", "crown_volume", "foliage_area"):
         np.testing.assert_allclose(getattr(compiled, name), getattr(reference, name), atol=1e-13)
     assert compiled.ground_gap == pytest.approx(reference.ground_gap, rel=1e-12, abs=1e-15)
+
+
+@needs_numba
+@pytest.mark.parametrize("even", [False, True], ids=["stretched nodes", "even nodes"])
+def test_compiled_crown_node_ranges_equal_numpy_reference(rng, even):
+    """Crowns inside, across and beyond the grid, some with an edge exactly on a node or
+    an ulp beside one: the compiled search gives the reference's first and last nodes."""
+    grid = ColumnGrid.build(5.0, 0.7, 1e-3, **({"stretch": None} if even else {}))
+    n = 600
+    x, y = rng.uniform(-1.5, 1.5, (2, n)) * grid.radius
+    radius = rng.uniform(0.0, 4.0, n)
+    on_node = grid.nodes[rng.integers(0, grid.nodes.size, 60)]
+    x[:60], radius[:60] = on_node + 1.0, 1.0  # x − r lands on a node, or an ulp off it
+    x[60:120] = np.nextafter(grid.nodes[rng.integers(0, grid.nodes.size, 60)], np.inf)
+    radius[60:120] = 0.0
+    x[120:130] = grid.nodes[0] - 1.0  # wholly before the first node
+    crowns = CrownSet(
+        x=x, y=y, radius=radius, shape=np.zeros(n, np.int64), base=np.zeros(n),
+        length=np.ones(n), extinction=np.ones(n), favd=np.ones(n),
+    )  # fmt: skip
+    reference = crown_node_ranges(grid, crowns)
+    compiled = column_kernel_numba.crown_node_ranges(grid, crowns)
+    for got, want in zip(compiled, reference):
+        np.testing.assert_array_equal(got, want)
+    assert np.any(compiled[1] < compiled[0])  # crowns that hold no node are kept so
 
 
 @needs_numba
