@@ -3,9 +3,8 @@ how it was reached.
 
 Every flag an inversion raises begins with the words of its kind (:data:`FLAG_KINDS`).
 A *warning* tells the user not to take the reported quantities as they stand: the model
-misses part of the waveform, the footprint's canopy height contradicts its own waveform
-(below its RH98 or above its highest return), the ground may be another, or the run
-stopped at its step cap. The other kinds are notes:
+misses part of the waveform, the footprint's canopy height contradicts its own waveform,
+the ground may be another, or the run stopped at its step cap. The other kinds are notes:
 how the answer was reached (the instrument model's error raised, a few slow walkers, the
 realisations' seed), on many shots whose answers are right. A result without warnings is
 what the validation pages call clean (``studies/real_inversion.py``: far-off answers
@@ -23,7 +22,7 @@ from ..passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
 from ..passes.realisations import PER_BIN_NOTE
 from ..sampling.sampler import LOW_ACCEPTANCE_NOTE, NOT_CONVERGED_FLAG
 from ..sampling.start import MAP_NOT_CONVERGED_NOTE
-from .footprint import CANOPY_HEIGHT_FLAG, UNSEEN_TOP_FLAG
+from .footprint import CANOPY_HEIGHT_FLAG, UNSEEN_TOP_NOTE
 from .realisation_spread import SEED_SPREAD_NOTE, SPREAD_NOT_MEASURED_NOTE
 
 
@@ -55,12 +54,6 @@ FLAG_KINDS = {
         True,
         "the footprint's tallest stem, drawn from the stand, stands well below the RH98 of "
         "the footprint's own waveform: take rh98_footprint as the canopy's top",
-    ),
-    UNSEEN_TOP_FLAG: FlagKind(
-        True,
-        "the footprint's tallest stem, drawn from the stand, stands well above the highest "
-        "return the recorded waveform shows: the canopy height is the stand model's, not "
-        "the footprint's; take rh98_footprint as the canopy's top",
     ),
     GROUND_MODES_FLAG: FlagKind(
         True,
@@ -95,6 +88,12 @@ FLAG_KINDS = {
     LOW_ACCEPTANCE_NOTE: FlagKind(False, "some walkers accepted fewer than 5 % of their moves"),
     MAP_NOT_CONVERGED_NOTE: FlagKind(
         False, "the MAP search, which starts the walkers, ended at its iteration limit"
+    ),
+    UNSEEN_TOP_NOTE: FlagKind(
+        False,
+        "the footprint's tallest stem, drawn from the stand, stands well above the highest "
+        "return that clears the noise floor: the stand model, not a detected return, sets "
+        "the canopy height (in-family synthetic shots so flagged are calibrated)",
     ),
     SEED_SPREAD_NOTE: FlagKind(
         False,

@@ -12,8 +12,9 @@ from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, build_problem, invert_shot
 from lidarinv.inference.model.tallest_stem import disc_area
 from lidarinv.inference.results.collect import footprint_top_height
+from lidarinv.inference.results.flags import is_warning
 from lidarinv.inference.results.footprint import (
-    UNSEEN_TOP_FLAG,
+    UNSEEN_TOP_NOTE,
     bare_ground_rh98,
     canopy_height_note,
     footprint_no_stem,
@@ -191,16 +192,17 @@ def test_a_sparse_tall_storey_missing_from_the_disc_is_flagged():
     assert canopy_height_note(no_stem, broadened, 2.3, bare=judged_bare) is None
 
 
-def test_a_stem_above_every_recorded_return_is_flagged():
-    """Draws whose tallest stem stands 8 m above the waveform's signal start (a wide
-    height distribution the data cannot rule out) are flagged; stems at or just under
-    the signal start, within a pulse width above it, or on a bare disc (0 m) are not."""
+def test_a_stem_above_every_recorded_return_is_noted():
+    """Draws whose tallest stem stands 8 m above the waveform's signal start get the note
+    (not a warning); stems under the signal start, within a pulse width above it, on a
+    bare disc (0 m), or above it in under half the draws do not."""
     rng = np.random.default_rng(3)
     n = 2000
     signal_top = rng.normal(43.0, 0.3, n)  # the signal start above each draw's ground
     unseen = rng.normal(51.0, 1.0, n)
     note = unseen_top_note(unseen, signal_top, tolerance_m=2.3)
-    assert note is not None and note.startswith(UNSEEN_TOP_FLAG) and "100% of draws" in note
+    assert note is not None and note.startswith(UNSEEN_TOP_NOTE) and "100% of draws" in note
+    assert not is_warning(note)
     assert unseen_top_note(rng.normal(41.0, 1.0, n), signal_top, 2.3) is None
     assert unseen_top_note(signal_top + 1.5, signal_top, 2.3) is None  # the pulse's spread
     assert unseen_top_note(np.zeros(n), signal_top, 2.3) is None
