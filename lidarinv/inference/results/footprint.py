@@ -313,7 +313,7 @@ def unseen_top_note(canopy_height, signal_top, tolerance_m: float) -> str | None
     Returns
     -------
     str or None
-        The flag where more than :data:`DISAGREEING_SHARE` of the draws hold a stem more
+        The note where more than :data:`DISAGREEING_SHARE` of the draws hold a stem more
         than ``tolerance_m`` above the signal start.
 
     Notes
@@ -321,9 +321,8 @@ def unseen_top_note(canopy_height, signal_top, tolerance_m: float) -> str | None
     A note, not a warning. The tallest stem is drawn from the stand's law on the disc,
     and a crown's apex returns little: the highest return above the noise floor often
     lies metres below the tallest stem, and the likelihood still reads the faint
-    return spread over many bins under that floor. Of 100 in-family synthetic shots
-    (``studies/recovery.py``) 18 were so flagged, and the 90 % interval of every one of
-    them held the true canopy height.
+    return spread over many bins under that floor. In-family synthetic shots so flagged
+    hold the truth within their intervals (the limitations page gives the count).
     """
     disagree = _disagreeing_draws(canopy_height, signal_top, lambda h, t: h > t + tolerance_m)
     if disagree is None:
