@@ -244,17 +244,12 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     seen = heights["rh98_footprint"]  # the footprint's own waveform, else the model's
     seen = seen if np.isfinite(seen).any() else derived["rh98"]
     derived[FOOTPRINT_BARE] = footprint_bare(problem, x, seen, canopy_sigmas)
-    canopy_height, pulse_width = (
-        seen_canopy_height(derived[FOOTPRINT_TOP], derived),
-        pulse_width_m(problem.instrument.pulse),
-    )
+    canopy_height = seen_canopy_height(derived[FOOTPRINT_TOP], derived)
+    pulse_width = pulse_width_m(problem.instrument.pulse)
+    signal_top = problem.analysis.signal_start - space.values(x)["ground_elevation"]
     height_notes = [
         canopy_height_note(canopy_height, seen, pulse_width, derived[FOOTPRINT_BARE]),
-        unseen_top_note(
-            canopy_height,
-            problem.analysis.signal_start - space.values(x)["ground_elevation"],
-            pulse_width,
-        ),
+        unseen_top_note(canopy_height, signal_top, pulse_width),
     ]
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
     terms = post.evaluate(x[pick], keep_signal=True)
