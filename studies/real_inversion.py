@@ -27,8 +27,12 @@ plots them.
     python studies/real_inversion.py [--data ../shared/data/real | examples]
                                      [--instrument gedi lvis] [--skip-shots N]
                                      [--max-shots N]
-                                     [--max-steps 20000] [--workers 1] [--seed 1]
-                                     [--priors FILE] [--cohorts 1|2|auto] [--tag _NAME]
+                                     [--max-steps 20000] [--walkers 128] [--workers 1]
+                                     [--seed 1] [--priors FILE] [--cohorts 1|2|auto]
+                                     [--tag _NAME]
+
+Two runs of the same shots (e.g. ``--walkers 64`` against the default) are compared shot
+by shot with ``studies/compare_runs.py``.
 """
 
 import json
@@ -110,7 +114,7 @@ def products(files) -> dict:
 def invert_one(job):
     """One shot: its posterior summary against the product, or why it failed, and against
     its long reference run where the job carries one."""
-    obs, product, max_steps, seed, priors, cohorts = job[:6]
+    obs, product, sampler, seed, priors, cohorts = job[:6]
     figures = job[6] if len(job) > 6 else None
     reference = job[7] if len(job) > 7 else None
     from dataclasses import replace
@@ -118,8 +122,8 @@ def invert_one(job):
     from lidarinv.inference import InversionSettings, invert_shot
 
     settings = InversionSettings() if priors is None else InversionSettings.from_priors_file(priors)
-    if max_steps:
-        settings = replace(settings, sampler=replace(settings.sampler, max_steps=max_steps))
+    if sampler:  # SamplerSettings changes: the step cap, the walkers
+        settings = replace(settings, sampler=replace(settings.sampler, **sampler))
     if cohorts is not None:
         settings = replace(settings, cohorts=cohorts if cohorts == "auto" else int(cohorts))
     record = {"shot": obs.shot_id, "instrument": obs.instrument, "product": product}
@@ -359,6 +363,7 @@ def main(argv=None):
                         help="leave out an instrument's first N quality shots")  # fmt: skip
     parser.add_argument("--max-shots", type=int, help="at most this many shots an instrument")
     parser.add_argument("--max-steps", type=int, help="sampler step cap (default: settings')")
+    parser.add_argument("--walkers", type=int, help="ensemble walkers (default: settings')")
     parser.add_argument("--priors", type=Path, help="priors file (default settings without)")
     parser.add_argument("--cohorts", choices=("1", "2", "auto"), help="height cohorts")
     parser.add_argument(
@@ -375,7 +380,9 @@ def main(argv=None):
     out = harness.output_folder("real_inversion", args.tag)
     jobs = []
     # shots with a long reference run are inverted with its seed, at default settings only
-    default = args.priors is None and args.max_steps is None and args.cohorts is None
+    sampler = {"max_steps": args.max_steps, "n_walkers": args.walkers}
+    sampler = {name: value for name, value in sampler.items() if value is not None}
+    default = args.priors is None and not sampler and args.cohorts is None
     references = read_store(REFERENCE_STORE) if default else {}
     for instrument in args.instrument:
         shots = [o for o in iter_observations(files[f"{instrument}-l1b"])
@@ -385,7 +392,7 @@ def main(argv=None):
         for o, s in list(zip(shots, seeds))[args.skip_shots : end]:
             reference = references.get(f"{instrument}:{o.shot_id}")
             seed = s if reference is None else reference["seed"]  # the same posterior
-            jobs.append((o, wanted[(instrument, o.shot_id)], args.max_steps, seed, args.priors,
+            jobs.append((o, wanted[(instrument, o.shot_id)], sampler, seed, args.priors,
                          args.cohorts, out / "shots", reference))  # fmt: skip
     print(f"{len(jobs)} shots to invert")
     records, results = [], {}
@@ -400,6 +407,7 @@ def main(argv=None):
     summary = {
         "data": {k: Path(v).name for k, v in files.items()},
         "max_steps": args.max_steps,
+        "walkers": args.walkers,
         "priors": None if args.priors is None else args.priors.read_text(),
         "cohorts": args.cohorts,
         **{i: statistics(records, i) for i in args.instrument},
