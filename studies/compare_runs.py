@@ -19,8 +19,9 @@ import json
 
 import harness
 import numpy as np
-from real_inversion import QUANTITIES
+from real_inversion import QUANTITIES, statistics
 from real_inversion_table import warned
+from speed_real_shots import agreement
 
 #: The sd of a normal posterior from its 5–95 % interval.
 INTERVAL_SDS = 3.29
@@ -35,28 +36,25 @@ def read_records(tag) -> dict:
     return {(r["instrument"], r["shot"]): r for r in records if "posterior" in r}
 
 
+def _quantiles(record) -> dict:
+    """A record's posterior 5/50/95 % as :func:`speed_real_shots.agreement` takes them,
+    the sd from the interval's width; quantities with a non-finite quantile left out."""
+    return {
+        name: {"quantiles": q, "sd": (q[2] - q[0]) / INTERVAL_SDS}
+        for name, q in record["posterior"].items()
+        if np.all(np.isfinite(q))
+    }
+
+
 def quantile_shifts(first, second, quantity) -> np.ndarray:
     """|second − first| of the 5/50/95 % quantiles of ``quantity``, in the first run's
     posterior sd, one row per shot (n, 3); shots with a zero or unknown sd left out."""
     rows = []
     for a, b in zip(first, second, strict=True):
-        qa = np.array(a["posterior"][quantity], float)
-        qb = np.array(b["posterior"][quantity], float)
-        sd = (qa[2] - qa[0]) / INTERVAL_SDS
-        if sd > 0 and np.all(np.isfinite(qa)) and np.all(np.isfinite(qb)):
-            rows.append(np.abs(qb - qa) / sd)
-    return np.array(rows).reshape(-1, 3)
-
-
-def product_error(records, quantity, product) -> float:
-    """Median |posterior median − product| over ``records`` (NaN where none has both)."""
-    errors = [
-        abs(r["posterior"][quantity][1] - r["product"][product])
-        for r in records
-        if quantity in r["posterior"] and np.isfinite(r["product"].get(product, np.nan))
-    ]
-    errors = [e for e in errors if np.isfinite(e)]
-    return float(np.median(errors)) if errors else float("nan")
+        shift = agreement(_quantiles(b), _quantiles(a)).get(quantity)
+        if shift is not None:
+            rows.append(shift)
+    return np.array(rows, float).reshape(-1, 3)
 
 
 def compare(first: dict, second: dict) -> dict:
@@ -69,14 +67,14 @@ def compare(first: dict, second: dict) -> dict:
         a, b = [first[k] for k in keys], [second[k] for k in keys]
         entry = {"shots": len(keys)}
         for name, records in (("first", a), ("second", b)):
+            stats = statistics(records, instrument, per_shot=False)
             entry[name] = {
-                "cpu_seconds_median": float(np.median([r["cpu_seconds"] for r in records])),
+                "cpu_seconds_median": stats["median_cpu_seconds"],
                 "steps_median": float(np.median([r["steps"] for r in records])),
-                "converged": sum(bool(r["converged"]) for r in records),
+                "converged": stats["converged"],
                 "warned": sum(warned(r["flags"]) for r in records),
                 "product_error_median": {
-                    label: product_error(records, quantity, product)
-                    for label, (quantity, product) in QUANTITIES.items()
+                    label: stats[label]["median_abs"] for label in QUANTITIES if label in stats
                 },
             }
         shifts = {}

@@ -16,7 +16,7 @@ def _record(shot, median, *, steps=800, flags=(), instrument="gedi"):
         "steps": steps,
         "converged": True,
         "flags": list(flags),
-        "product": {"ground": 100.0, "rh98": 10.0, "cover": 0.3},
+        "product": {"ground": 100.0, "rh98": 10.0, "cover": 0.3, "rh98_model_convention": 10.0},
         "posterior": {
             "rh98": [median - half, median, median + half],
             "ground": [99.9, 100.1, 100.3],
