@@ -54,7 +54,7 @@ from lidarinv.inference import (  # noqa: E402
     build_problem,
     invert_shot,
 )
-from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS, SIMULATED  # noqa: E402
+from lidarinv.inference.likelihood.discrepancy import DISCREPANCY_MODELS, SIMULATED_MODELS  # noqa: E402
 from lidarinv.inference.model.parameters import (  # noqa: E402
     DEFAULT_STRUCTURE_PRIORS,
     NUISANCE,
@@ -228,7 +228,7 @@ def truth_log_prob(obs, settings) -> float:
     """Log-posterior (sampling coordinates) at the true parameters: a chain that never
     comes near it, with the data drawn from the model itself, searched the wrong basin.
     NaN under the ``realisations`` discrepancy, whose covariance is drawn in the run."""
-    if settings.discrepancy_model == SIMULATED or settings.cohorts != 1:
+    if settings.discrepancy_model in SIMULATED_MODELS or settings.cohorts != 1:
         return float("nan")
     problem = build_problem(obs, settings)
     space = problem.space

@@ -16,7 +16,8 @@ from threadpoolctl import threadpool_limits
 from lidarinv.observe.observation import Observation
 
 from .likelihood.covariance import covariance_obstacle
-from .likelihood.discrepancy import SIMULATED
+from .likelihood.discrepancy import FOLLOWING, SIMULATED_MODELS
+from .likelihood.following import FollowingCovariance
 from .passes.ambiguity import competing_grounds, pulse_width_m
 from .passes.ambiguity import describe as describe_competing
 from .passes.cohorts import CohortChoice, choose_cohorts
@@ -195,6 +196,17 @@ def prepare_problem(
         return _prepare(observation, settings, rng)
 
 
+def following_covariance(pilot, simulation, settings, diagonal, likelihood):
+    """The covariance that follows each row's stand (:mod:`.likelihood.following`), scaled
+    against the model waveform of the pilot MAP the realisations were simulated about."""
+    x, _ = pilot.space.from_unbounded(np.atleast_2d(simulation.estimate.u))
+    signal = pilot.evaluate(x, keep_signal=True).signal[0]
+    return FollowingCovariance.of(
+        simulation.residuals, settings.realisations.shrinkage, signal, diagonal,
+        likelihood.whitening,
+    )  # fmt: skip
+
+
 def _prepare(observation, settings, rng) -> Preparation:
     settings = InversionSettings() if settings is None else settings
     if settings.cohorts == AUTO:
@@ -214,7 +226,7 @@ def _prepare(observation, settings, rng) -> Preparation:
         prepared.notes.append(hidden)
     pilot = problem.log_posterior  # the posterior the MAP search maximised
     likelihood = pilot.likelihood
-    if settings.discrepancy_model == SIMULATED:
+    if settings.discrepancy_model in SIMULATED_MODELS:
         obstacle = covariance_obstacle(problem.window, settings.shot_factor)
         if obstacle is None:
             covariance, simulation = realisation_covariance(
@@ -237,7 +249,12 @@ def _prepare(observation, settings, rng) -> Preparation:
                     prepared.notes.append(describe_floor(floor, least))
                 if exceeds_ceiling(needed, least):
                     prepared.notes.append(describe_misfit(needed))
-            problem = problem.with_likelihood(likelihood.with_fixed_discrepancy(covariance))
+            simulated = likelihood.with_fixed_discrepancy(covariance)
+            if settings.discrepancy_model == FOLLOWING:
+                simulated = simulated.with_following(
+                    following_covariance(pilot, simulation, settings, diagonal, simulated)
+                )
+            problem = problem.with_likelihood(simulated)
             prepared.discrepancy_draws = DiscrepancyDraws(
                 simulation.residuals, settings.realisations.shrinkage, diagonal
             )

@@ -14,6 +14,10 @@ holds one. The difference enters the likelihood as an extra variance per bin, a 
 ``realisations``
     A covariance between bins simulated from explicit realisations around a pilot MAP
     (:mod:`lidarinv.inference.passes.realisations`); the pilot uses ``observed``.
+``following``
+    The same simulated covariance, scaled bin by bin by each row's own model signal
+    against the pilot's (:mod:`.following`), so that a row without crowns where the pilot
+    had them finds no spread there.
 
 The spread of a Poisson stand seen through a Gaussian footprint is
 :func:`forward.poisson_stand.footprint_gap_cv2` (``studies/discrepancy.py``).
@@ -71,7 +75,12 @@ DISCREPANCY_MODELS = {
     "model": None,
     "observed": observed_variance,
     "realisations": observed_variance,
+    "following": observed_variance,
 }
 
 #: The discrepancy model that replaces the per-bin variance by a simulated covariance.
 SIMULATED = "realisations"
+#: The discrepancy model whose simulated covariance follows each row's stand.
+FOLLOWING = "following"
+#: The discrepancy models that simulate a covariance for the shot.
+SIMULATED_MODELS = (SIMULATED, FOLLOWING)

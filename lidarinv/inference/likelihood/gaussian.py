@@ -54,6 +54,11 @@ class ShotLikelihood:
         discrepancy becomes the covariance L⁻¹CL⁻ᵀ; where that is impossible (censored
         or saturated bins, shot noise, a discrepancy proportional to each row's model)
         the noise is taken as white and :attr:`correlation_obstacle` says why.
+    following : FollowingCovariance, optional
+        A discrepancy covariance scaled by each row's own stand (:mod:`.following`): the
+        log-likelihood is then taken under it, while the predictive draws, the
+        discrepancy given the data and the gain's draws keep ``fixed_discrepancy``, the
+        pilot's. Needs a fixed covariance and every bin exactly recorded.
 
     Notes
     -----
@@ -64,8 +69,9 @@ class ShotLikelihood:
     """
 
     def __init__(self, data, shot_factor=0.0, discrepancy=0.0, fixed_discrepancy=None,
-                 gain_prior=None, noise_correlation=None):  # fmt: skip
+                 gain_prior=None, noise_correlation=None, following=None):  # fmt: skip
         self.data = data
+        self.following = following
         self.shot_factor, self.discrepancy = float(shot_factor), float(discrepancy)
         self.gain_prior = gain_prior
         self.noise_correlation = noise_correlation
@@ -81,6 +87,8 @@ class ShotLikelihood:
                 if fixed_discrepancy.shape != data.axis.shape or not good:
                     raise ValueError("fixed_discrepancy must be finite, ≥ 0 and one per window bin")
         self.fixed_discrepancy = fixed_discrepancy
+        if following is not None and (fixed_discrepancy is None or fixed_discrepancy.ndim != 2):
+            raise ValueError("a following covariance needs the pilot's fixed covariance too")
         # η of a discrepancy proportional to each row's model: none when the observation
         # fixes the discrepancy
         self.discrepancy_scale = self.discrepancy if fixed_discrepancy is None else 0.0
@@ -149,6 +157,23 @@ class ShotLikelihood:
             self.noise_correlation,
         )  # fmt: skip
 
+    def with_following(self, following) -> "ShotLikelihood":
+        """The same likelihood, its log-likelihood under a covariance that follows each
+        row's stand (:mod:`.following`).
+
+        Parameters
+        ----------
+        following : FollowingCovariance
+
+        Returns
+        -------
+        ShotLikelihood
+        """
+        return type(self)(
+            self.data, self.shot_factor, self.discrepancy, self.fixed_discrepancy,
+            self.gain_prior, self.noise_correlation, following,
+        )  # fmt: skip
+
     @classmethod
     def for_shot(cls, window, noise, settings, fixed_discrepancy=None) -> "ShotLikelihood":
         """The likelihood of a shot's window, with the noise model fitted to its measured
@@ -177,7 +202,7 @@ class ShotLikelihood:
         """The same likelihood with the gain integrated out against ``gain_prior``."""
         return type(self)(
             self.data, self.shot_factor, self.discrepancy, self.fixed_discrepancy, gain_prior,
-            self.noise_correlation,
+            self.noise_correlation, self.following,
         )  # fmt: skip
 
     @property
@@ -314,6 +339,8 @@ class ShotLikelihood:
         gain_fit : array (n, 4) or None
             Where the gain is integrated out, each row's :func:`.marginal.linear_fit`.
         """
+        if self.following is not None:
+            return self._following_log_likelihood(signal, values)
         data, unit = self._basis_data, self._unit
         signal = self.to_basis(signal)
         if self.gain_marginal is None:
@@ -325,6 +352,31 @@ class ShotLikelihood:
         fit = linear_fit(
             signal, values["baseline"], values["noise_sigma"], self._fixed_variance, data, unit
         )
+        return self.gain_marginal.log_likelihood(fit) + self._log_det_term, fit
+
+    @cached_property
+    def _whitened_window(self):
+        """L⁻¹y and L⁻¹1 (y and ones where the noise is white)."""
+        samples, unit = self.data.samples, np.ones(self.data.axis.size)
+        if self.whitening is None:
+            return samples, unit
+        return self.whitening.whiten(samples), self.whitening.whiten(unit)
+
+    def _following_log_likelihood(self, signal, values):
+        """:meth:`log_likelihood` under the covariance that follows each row's stand."""
+        samples, unit = self._whitened_window
+        forms = self.following.quadratic_forms(
+            signal, samples, unit, values["baseline"], values["noise_sigma"]
+        )
+        ww, wx, xx, log_det = forms.T
+        log_norm = self.data.axis.size * np.log(2.0 * np.pi) + log_det
+        if self.gain_marginal is None:
+            gain = np.asarray(values["gain"], float)
+            chi2 = xx - 2.0 * gain * wx + gain**2 * ww
+            return -0.5 * (chi2 + log_norm) + self._log_det_term, None
+        with np.errstate(divide="ignore", invalid="ignore"):
+            best = np.where(ww > 0, wx / ww, 0.0)
+        fit = np.column_stack([ww, best, xx - best * wx, log_norm])
         return self.gain_marginal.log_likelihood(fit) + self._log_det_term, fit
 
     def to_basis(self, rows) -> np.ndarray:
