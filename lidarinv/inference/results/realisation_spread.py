@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..likelihood.following import FollowingCovariance
 from ..passes.realisations import discrepancy_covariance
 from .reported import REPORTED
 
@@ -118,7 +119,7 @@ def realisation_spread(
     fractions = []
     for _ in range(int(resamples)):
         rows = rng.integers(0, count, count)
-        resampled = likelihood.with_fixed_discrepancy(draws.covariance(rows))
+        resampled = resampled_likelihood(likelihood, draws, rows)
         log_ratio = resampled.log_likelihood(signal, values)[0] - terms.log_likelihood[kept]
         weights = np.exp(log_ratio - np.max(log_ratio))
         fractions.append(np.sum(weights) ** 2 / np.sum(weights**2) / weights.size)
@@ -150,6 +151,21 @@ COMPARED_HEIGHTS = ("rh98_product", "rh98_footprint")
 #: this (posterior sd) is flagged: the answer depends on the seed more than on the data's
 #: resolution of it, and a larger ``RealisationSettings.count`` is needed.
 FLAG_SPREAD_SD = 0.5
+
+
+def resampled_likelihood(likelihood, draws: DiscrepancyDraws, rows):
+    """The likelihood under the covariance of the residuals ``rows``; one that follows
+    each row's stand (:mod:`..likelihood.following`) follows it from those residuals too."""
+    resampled = likelihood.with_fixed_discrepancy(draws.covariance(rows))
+    following = likelihood.following
+    if following is None:
+        return resampled
+    return resampled.with_following(
+        FollowingCovariance.of(
+            draws.residuals[rows], draws.shrinkage, following.pilot_signal, draws.diagonal,
+            likelihood.whitening,
+        )
+    )  # fmt: skip
 
 
 def add_realisation_spread(result, problem, draws: DiscrepancyDraws, rng, resamples) -> None:

@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from lidarinv.inference.likelihood.ar_noise import AutoregressiveNoise
-from lidarinv.inference.likelihood.following import FollowingCovariance
+from lidarinv.inference.likelihood.following import KEPT_SHARE, FollowingCovariance
 from lidarinv.inference.likelihood.gaussian import ShotLikelihood
 from lidarinv.inference.model.priors import LogUniform
 from lidarinv.inference.passes.realisations import discrepancy_covariance
+from lidarinv.inference.results.realisation_spread import DiscrepancyDraws, resampled_likelihood
 from lidarinv.inference.shot import WindowData
 from lidarinv.testing import dense_log_likelihood
 
@@ -36,7 +37,7 @@ def _noise(phi):
     return AutoregressiveNoise(np.array([phi]), 1 - phi**2, np.array([1.0, phi]))
 
 
-def _likelihood(rng, phi, gain_prior=None, samples_signal=PILOT, kept_share=1.0):
+def _likelihood(rng, phi, gain_prior=None, samples_signal=PILOT, kept_share=KEPT_SHARE):
     residuals = _residuals(rng)
     floor = (0.05 * 2000.0 * PILOT) ** 2
     noise = _noise(phi)
@@ -64,7 +65,7 @@ def _rows(n=4):
 @pytest.mark.parametrize("phi", [0.0, 0.6])
 def test_following_likelihood_is_the_dense_normal_of_each_rows_scaled_covariance(phi):
     rng = np.random.default_rng(1)
-    _, like, residuals, floor, correlation = _likelihood(rng, phi)
+    _, like, residuals, floor, correlation = _likelihood(rng, phi, kept_share=1.0)
     rows, values = _rows()
     fast, _ = like.log_likelihood(rows, values)
     realised = discrepancy_covariance(residuals, SHRINKAGE)
@@ -83,7 +84,7 @@ def test_following_likelihood_is_the_dense_normal_of_each_rows_scaled_covariance
 def test_at_the_pilots_own_stand_it_is_the_fixed_covariance(phi):
     rng = np.random.default_rng(2)
     prior = LogUniform(500.0, 8000.0)
-    fixed, following, *_ = _likelihood(rng, phi, gain_prior=prior)
+    fixed, following, *_ = _likelihood(rng, phi, gain_prior=prior, kept_share=1.0)
     rows = np.tile(PILOT, (3, 1))
     values = {"baseline": np.array([39.9, 40.0, 40.1]), "noise_sigma": np.array([1.4, 1.5, 1.6])}
     ours, our_fit = following.log_likelihood(rows, values)
@@ -139,3 +140,17 @@ def test_bad_input_is_named():
                       saturated=np.zeros(BINS, bool))  # fmt: skip
     with pytest.raises(ValueError, match="pilot's fixed covariance"):
         ShotLikelihood(data, following=FollowingCovariance.of(residuals, SHRINKAGE, PILOT))
+
+
+def test_the_realisation_spread_resamples_a_following_covariance_as_such():
+    rng = np.random.default_rng(6)
+    fixed, following, residuals, floor, _ = _likelihood(rng, 0.6)
+    draws = DiscrepancyDraws(residuals, SHRINKAGE, floor)
+    rows, values = _rows()
+    every = np.arange(residuals.shape[0])
+    # all the residuals give back the covariance sampled, whichever kind it is
+    for like in (fixed, following):
+        again = resampled_likelihood(like, draws, every)
+        np.testing.assert_allclose(again.log_likelihood(rows, values)[0],
+                                   like.log_likelihood(rows, values)[0], atol=1e-6)  # fmt: skip
+    assert resampled_likelihood(following, draws, every[::2]).following is not None
