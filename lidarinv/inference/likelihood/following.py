@@ -41,12 +41,13 @@ class FollowingCovariance:
 
     Attributes
     ----------
-    pilot_signal : array (bins,)
+    pilot_signal : array (bins,) (apparent reflectance per bin)
         W°, the model waveform of the pilot MAP the residuals were simulated about.
     components : array (bins, k) (DN)
         √(1 − γ)·V, the residuals' leading components.
     remainder : array (bins,) (DN²)
-        c, γ·diag(R) plus (1 − γ) times the variance the components leave out.
+        c, γ times the residuals' variance plus (1 − γ) times what the components leave
+        out of it.
     fixed : array (bins,) (DN²)
         f, the instrument model's error (not scaled).
     whitening : array (bins, p + 1)
@@ -120,8 +121,8 @@ class FollowingCovariance:
         return np.clip(ratio, 0.0, LARGEST_SCALE)
 
     def covariance(self, signal) -> np.ndarray:
-        """The discrepancy part of Σ(θ) for one row, dense (bins × bins) (DN²): the
-        reference the kernel is tested against, and the rows' draws."""
+        """The discrepancy part of Σ(θ) for one row's model waveform, dense (bins × bins)
+        (DN²): the form the tests check the compiled kernel against."""
         scale = np.sqrt(self.scales(np.asarray(signal, float)[None, :])[0])
         low = scale[:, None] * self.components
         return low @ low.T + np.diag(scale**2 * self.remainder + self.fixed)
