@@ -157,7 +157,7 @@ def resampled_likelihood(likelihood, draws: DiscrepancyDraws, rows):
     """The likelihood under the covariance of the residuals ``rows``; one that follows
     each row's stand (:mod:`..likelihood.following`) follows it from those residuals too."""
     resampled = likelihood.with_fixed_discrepancy(draws.covariance(rows))
-    following = likelihood.following
+    following = getattr(likelihood, "following", None)  # absent from other likelihoods
     if following is None:
         return resampled
     return resampled.with_following(
