@@ -9,9 +9,12 @@ signal: the spread of a Poisson stand's return grows with its mean, and a row th
 no crown in a bin puts no spread there either,
 
     Σ(θ) = σn²·Σ_AR + diag(f) + S·[(1 − γ)·V·Vᵀ + diag(c)]·S,  S = diag(√r),
-    r_j = clip((W_j + ε) / (W°_j + ε), 0, r_max),
+    r_j = clip((W_j·ΣW°/ΣW + ε) / (W°_j + ε), 0, r_max),
 
-W the row's model waveform, W° the pilot's, ε = :data:`SIGNAL_FLOOR` of W°'s largest
+W the row's model waveform, W° the pilot's, W rescaled to W°'s total so that the scale
+follows where the return lies and not how bright it is (a brighter stand's spread in
+DN is the gain's to carry, and scaling by brightness biased the marginalised gain: the
+limitations page gives the calibration), ε = :data:`SIGNAL_FLOOR` of W°'s largest
 value, V the leading components of the realisation residuals, c the residuals' variance
 outside them and γ the shrinkage (:func:`.passes.realisations.discrepancy_covariance`),
 f the instrument model's error (fixed for the shot) and Σ_AR the read noise's
@@ -113,11 +116,13 @@ class FollowingCovariance:
         return self.components.shape[1]
 
     def scales(self, signal) -> np.ndarray:
-        """r of each row (n, bins): its model signal against the pilot's."""
+        """r of each row (n, bins): where its model signal lies against where the pilot's
+        does, each taken at the pilot's total (:func:`signal_shares`)."""
+        signal = np.asarray(signal, float)
         floor = SIGNAL_FLOOR * max(float(np.max(self.pilot_signal)), 0.0)
         if floor <= 0.0:
-            return np.ones_like(np.asarray(signal, float))
-        ratio = (np.asarray(signal, float) + floor) / (self.pilot_signal + floor)
+            return np.ones_like(signal)
+        ratio = (signal_shares(signal, self.pilot_signal) + floor) / (self.pilot_signal + floor)
         return np.clip(ratio, 0.0, LARGEST_SCALE)
 
     def covariance(self, signal) -> np.ndarray:
@@ -153,6 +158,29 @@ class FollowingCovariance:
             np.ascontiguousarray(baseline, dtype=np.float64),
             np.ascontiguousarray(noise_sigma, dtype=np.float64),
         )  # fmt: skip
+
+
+def signal_shares(signal, pilot_signal) -> np.ndarray:
+    """Each row's model signal rescaled to the pilot's total: where its return lies, not
+    how bright it is.
+
+    Parameters
+    ----------
+    signal : array (n, bins) (apparent reflectance per bin)
+        W of each row.
+    pilot_signal : array (bins,) (apparent reflectance per bin)
+        W°.
+
+    Returns
+    -------
+    array (n, bins)
+        W·ΣW°/ΣW; zeros for a row without signal. A brighter or fainter stand of the
+        same shape (reflectance, gain) keeps the pilot's spread: only moving its return
+        between heights moves the spread with it.
+    """
+    totals = np.sum(signal, axis=-1, keepdims=True)
+    safe = np.where(totals > 0.0, totals, 1.0)
+    return np.where(totals > 0.0, signal * (float(np.sum(pilot_signal)) / safe), 0.0)
 
 
 @jit

@@ -20,6 +20,7 @@ from .footprint import (
     excess_sigmas,
     footprint_bare,
     footprint_no_stem,
+    stand_rh98_note,
     unseen_top_note,
 )
 from .local_misfit import describe_local_misfit, local_misfit, return_width_bins
@@ -250,7 +251,9 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
     height_notes = [
         canopy_height_note(canopy_height, seen, pulse_width, derived[FOOTPRINT_BARE]),
         unseen_top_note(canopy_height, signal_top, pulse_width),
-    ]
+        stand_rh98_note(derived["rh98"], heights["rh98_footprint"], pulse_width,
+                        derived[FOOTPRINT_BARE]),
+    ]  # fmt: skip
     pick = rng.choice(x.shape[0], size=min(_BAND_SAMPLES, x.shape[0]), replace=False)
     terms = post.evaluate(x[pick], keep_signal=True)
     good = np.isfinite(terms.log_posterior)

@@ -22,7 +22,7 @@ from ..passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
 from ..passes.realisations import PER_BIN_NOTE
 from ..sampling.sampler import LOW_ACCEPTANCE_NOTE, NOT_CONVERGED_FLAG
 from ..sampling.start import MAP_NOT_CONVERGED_NOTE
-from .footprint import CANOPY_HEIGHT_FLAG, UNSEEN_TOP_NOTE
+from .footprint import CANOPY_HEIGHT_FLAG, STAND_RH98_FLAG, UNSEEN_TOP_NOTE
 from .realisation_spread import SEED_SPREAD_NOTE, SPREAD_NOT_MEASURED_NOTE
 
 
@@ -54,6 +54,12 @@ FLAG_KINDS = {
         True,
         "the footprint's tallest stem, drawn from the stand, stands well below the RH98 of "
         "the footprint's own waveform: take rh98_footprint as the canopy's top",
+    ),
+    STAND_RH98_FLAG: FlagKind(
+        True,
+        "the expected stand's RH98 lies well below that of the footprint's own waveform: "
+        "the discrepancy carries the canopy's top, and the stand's quantities (rh98, "
+        "cover, PAI, crown volume) describe a lower canopy: take rh98_footprint",
     ),
     GROUND_MODES_FLAG: FlagKind(
         True,

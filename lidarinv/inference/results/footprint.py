@@ -291,6 +291,54 @@ def canopy_height_note(canopy_height, rh98, tolerance_m: float, bare=None) -> st
     )
 
 
+#: How the result's flag of :func:`stand_rh98_note` begins.
+STAND_RH98_FLAG = "expected stand's RH98 below the footprint's"
+
+
+def stand_rh98_note(stand_rh98, footprint_rh98, tolerance_m: float, bare=None) -> str | None:
+    """The result's flag where most draws put the expected stand's RH98 well below the RH98
+    of the draw's own footprint waveform; None where they agree.
+
+    Parameters
+    ----------
+    stand_rh98 : array (n,) (m)
+        RH98 of each draw's model waveform, the expected stand's (``rh98``).
+    footprint_rh98 : array (n,) (m)
+        RH98 of each draw's footprint waveform, the model's plus the discrepancy drawn
+        given the data (``rh98_footprint``); NaN where it cannot be drawn.
+    tolerance_m : float (m)
+        A pulse width (:func:`.passes.ambiguity.pulse_width_m`).
+    bare : array (n,), optional
+        :func:`footprint_bare` of each draw: a draw whose waveform shows no canopy agrees.
+
+    Returns
+    -------
+    str or None
+        The flag where more than :data:`DISAGREEING_SHARE` of the draws with both values
+        put the stand's RH98 more than ``tolerance_m`` below the footprint's.
+
+    Notes
+    -----
+    The expected stand spreads a sparse storey's crowns thin over every arrangement;
+    where the footprint holds a few tall crowns, the discrepancy carries their return and
+    the stand's RH98 falls below the footprint's. Then the stand the posterior describes
+    (its RH98, cover, PAI and crown volume) is lower than the one this waveform shows.
+    """
+    disagree = _disagreeing_draws(stand_rh98, footprint_rh98, lambda h, r: h < r - tolerance_m,
+                                  bare)  # fmt: skip
+    if disagree is None:
+        return None
+    share, stand, footprint = disagree
+    return (
+        f"{STAND_RH98_FLAG}: in {share:.0%} of draws the RH98 of the expected stand's "
+        f"waveform lies more than {tolerance_m:.1f} m (a pulse width) below that of the "
+        f"footprint's own waveform (medians {stand:.1f} m and {footprint:.1f} m): the "
+        "discrepancy, not the stand, carries the canopy's top return, and the stand's "
+        "quantities describe a lower canopy than this footprint's: take rh98_footprint "
+        "as the footprint's RH98"
+    )
+
+
 #: How the result's flag of :func:`unseen_top_note` begins.
 UNSEEN_TOP_NOTE = "canopy height above the waveform's highest return"
 

@@ -101,7 +101,10 @@ def test_a_row_without_the_upper_storey_finds_no_spread_where_it_was():
     values = {"gain": np.array([2000.0]), "baseline": np.array([40.0]),
               "noise_sigma": np.array([1.5])}  # fmt: skip
     scales = following.following.scales(without)[0]
-    assert scales[np.argmax(UPPER)] < 0.05 and scales[np.argmax(LOWER)] == pytest.approx(1, 0.05)
+    # the lower storey's return, taken at the pilot's total, carries the upper one's share
+    brighter = PILOT.sum() / without.sum()
+    assert scales[np.argmax(UPPER)] < 0.05
+    assert scales[np.argmax(LOWER)] == pytest.approx(brighter, rel=0.05)
     with_upper = np.array([PILOT])
     drop_fixed = (
         fixed.log_likelihood(without, values)[0] - fixed.log_likelihood(with_upper, values)[0]
@@ -112,6 +115,18 @@ def test_a_row_without_the_upper_storey_finds_no_spread_where_it_was():
     )
     # the fixed covariance lets the storey go at a small cost; following it does not
     assert drop_following < drop_fixed - 10.0
+
+
+def test_the_scale_follows_where_the_return_lies_not_its_brightness():
+    rng = np.random.default_rng(5)
+    following = FollowingCovariance.of(_residuals(rng), SHRINKAGE, PILOT)
+    rows, _ = _rows()
+    np.testing.assert_allclose(following.scales(3.0 * rows), following.scales(rows), rtol=1e-12)
+    np.testing.assert_allclose(following.scales(0.5 * PILOT[None, :])[0], 1.0, rtol=1e-12)
+    # a row that moves return from the upper storey to the lower one moves the spread too
+    moved = following.scales(np.array([0.02 * (GROUND + 1.3 * LOWER)]))[0]
+    assert moved[np.argmax(LOWER)] > 1.0 > moved[np.argmax(UPPER)]
+    assert np.all(following.scales(np.zeros((1, BINS))) <= 1.0)
 
 
 def test_leading_components_keep_the_asked_share():

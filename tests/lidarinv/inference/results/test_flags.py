@@ -10,7 +10,7 @@ from lidarinv.inference.passes.ambiguity import describe, describe_modes
 from lidarinv.inference.passes.cohorts import CohortChoice
 from lidarinv.inference.passes.model_error import describe_floor, describe_misfit
 from lidarinv.inference.results.flags import FLAG_KINDS, flag_kind, is_warning
-from lidarinv.inference.results.footprint import canopy_height_note
+from lidarinv.inference.results.footprint import canopy_height_note, stand_rh98_note
 from lidarinv.inference.sampling.sampler import SamplerSettings, _not_converged
 from lidarinv.inference.sampling.start import Mode
 
@@ -28,9 +28,11 @@ def _written_flags():
         20000, SamplerSettings(), np.array([900.0]), ["rh98 R̂ 1.02 > 1.01"], {}
     )
     short = canopy_height_note(np.full(50, 20.0), np.full(50, 40.0), 2.2)
+    low_stand = stand_rh98_note(np.full(50, 25.0), np.full(50, 33.0), 2.2)
     return [
         (describe_misfit(0.8), True),
         (short, True),
+        (low_stand, True),
         (describe_modes(modes), True),
         (stopped, True),
         (describe(ridge), False),  # the walkers start at each ground: the posterior decides

@@ -18,6 +18,7 @@ from lidarinv.inference.results.footprint import (
     bare_ground_rh98,
     canopy_height_note,
     footprint_no_stem,
+    stand_rh98_note,
     unseen_top_note,
 )
 from lidarinv.inference.sampling import SamplerSettings
@@ -190,6 +191,25 @@ def test_a_sparse_tall_storey_missing_from_the_disc_is_flagged():
     no_stem = np.where(judged_bare, 0.0, 5.0)
     assert canopy_height_note(no_stem, broadened, 2.3) is not None  # without the judgement
     assert canopy_height_note(no_stem, broadened, 2.3, bare=judged_bare) is None
+
+
+def test_a_stand_whose_rh98_falls_below_the_footprints_is_flagged():
+    """Draws whose expected stand's RH98 lies 8 m under their footprint waveform's (the
+    discrepancy carrying a sparse top) are flagged; draws within a pulse width of it, above
+    it, without a footprint RH98 (NaN), judged bare, or low in under half the draws are
+    not."""
+    rng = np.random.default_rng(4)
+    n = 2000
+    footprint = rng.normal(33.0, 0.5, n)
+    low = footprint - rng.normal(8.0, 1.0, n)
+    note = stand_rh98_note(low, footprint, tolerance_m=2.1)
+    assert note is not None and "100% of draws" in note and "rh98_footprint" in note
+    assert stand_rh98_note(footprint - 1.5, footprint, 2.1) is None
+    assert stand_rh98_note(footprint + 3.0, footprint, 2.1) is None
+    assert stand_rh98_note(low, np.full(n, np.nan), 2.1) is None
+    assert stand_rh98_note(low, footprint, 2.1, bare=np.ones(n)) is None
+    some = np.where(rng.uniform(size=n) < 0.4, low, footprint)
+    assert stand_rh98_note(some, footprint, 2.1) is None
 
 
 def test_a_stem_above_every_recorded_return_is_noted():
