@@ -49,7 +49,7 @@ from reference_posteriors import STORE as REFERENCE_STORE
 from speed_real_shots import plot_time_vs_error, read_store, reference_agreement
 
 from lidarinv.inference.passes.model_error import MISFIT_FLAG, MODEL_ERROR_FLAG
-from lidarinv.inference.results.footprint import CANOPY_HEIGHT_FLAG
+from lidarinv.inference.results.footprint import CANOPY_HEIGHT_FLAG, STAND_RH98_FLAG
 from lidarinv.inference.results.realisation_spread import largest_spread
 from lidarinv.io import iter_observations, read_gedi_l2a, read_gedi_l2b, read_lvis_l2
 from lidarinv.observe import Observation, analyse
@@ -246,6 +246,8 @@ def statistics(records, instrument, per_shot=True) -> dict:
         "model_error_raised": _count_flagged(done, MODEL_ERROR_FLAG),
         # the footprint's tallest stem far below its own waveform's RH98 in most draws
         "canopy_height_below_rh98": _count_flagged(done, CANOPY_HEIGHT_FLAG),
+        # the expected stand's RH98 far below the footprint's own in most draws
+        "stand_rh98_below_footprint": _count_flagged(done, STAND_RH98_FLAG),
         "median_instrument_floor": _percentile_of(done, "instrument_floor", 50),
         # per parameter, the shots whose posterior stayed at its prior (records made
         # before the comparison existed have none)
