@@ -31,6 +31,7 @@ from .passes.model_error import (
     shot_floor,
 )
 from .passes.realisations import PER_BIN_NOTE, realisation_covariance
+from .passes.recentre import recentred_simulation
 from .problem import InversionProblem, build_problem, fixed_discrepancy
 from .results.collect import collect_result
 from .results.realisation_spread import (
@@ -198,7 +199,8 @@ def prepare_problem(
 
 def following_covariance(pilot, simulation, settings, diagonal, likelihood):
     """The covariance that follows each row's stand (:mod:`.likelihood.following`), scaled
-    against the model waveform of the pilot MAP the realisations were simulated about."""
+    against the model waveform of the MAP the realisations were simulated about
+    (:func:`.recentre.recentred_simulation`)."""
     x, _ = pilot.space.from_unbounded(np.atleast_2d(simulation.estimate.u))
     signal = pilot.evaluate(x, keep_signal=True).signal[0]
     return FollowingCovariance.of(
@@ -250,7 +252,14 @@ def _prepare(observation, settings, rng) -> Preparation:
                 if exceeds_ceiling(needed, least):
                     prepared.notes.append(describe_misfit(needed))
             simulated = likelihood.with_fixed_discrepancy(covariance)
-            if settings.discrepancy_model == FOLLOWING:
+            if settings.discrepancy_model == FOLLOWING:  # centred where the fixed one peaks
+                pilot = problem.with_likelihood(simulated).log_posterior
+                simulation = recentred_simulation(
+                    pilot, problem.instrument, rng, settings.realisations, settings.sampler,
+                    simulation,
+                )  # fmt: skip
+                estimate = simulation.estimate
+                prepared.discrepancy_seconds = simulation.seconds
                 simulated = simulated.with_following(
                     following_covariance(pilot, simulation, settings, diagonal, simulated)
                 )
