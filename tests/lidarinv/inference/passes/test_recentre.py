@@ -31,7 +31,7 @@ def test_a_pilot_that_dropped_the_canopy_is_left_for_the_fixed_posteriors_optimu
     low[names.index("top_height")] *= 0.5
     wrong = problem.space.to_unbounded(low[None, :])[0]
     pilot_posterior = problem.log_posterior
-    log_prob = lambda u: pilot_posterior(u)[:, 0]  # noqa: E731
+    log_prob = lambda u: pilot_posterior(u)[:, 0]
     wrong_estimate = MapEstimate(wrong, float(log_prob(wrong[None, :])[0]), True, 0)
     wrong_estimate.covariance = laplace_covariance(log_prob, wrong)
     rng = np.random.default_rng(3)
