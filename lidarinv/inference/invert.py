@@ -31,7 +31,7 @@ from .passes.model_error import (
     shot_floor,
 )
 from .passes.realisations import PER_BIN_NOTE, realisation_covariance
-from .passes.recentre import recentred_simulation
+from .passes.recentre import recentre
 from .problem import InversionProblem, build_problem, fixed_discrepancy
 from .results.collect import collect_result
 from .results.realisation_spread import (
@@ -149,6 +149,9 @@ class Preparation:
         ground elsewhere (:func:`.ambiguity.competing_grounds`).
     discrepancy_draws : DiscrepancyDraws or None
         The realisations the discrepancy covariance was made from, where it was simulated.
+    recentring : dict or None
+        Under ``following``, the centre chosen and each candidate's optimum
+        (:meth:`.recentre.Recentring.describe`).
     """
 
     problem: InversionProblem
@@ -160,6 +163,7 @@ class Preparation:
     model_error_needed: float | None = None
     competing_grounds: list | None = None
     discrepancy_draws: DiscrepancyDraws | None = None
+    recentring: dict | None = None
 
     def diagnostics(self) -> dict:
         """The passes' outcomes for the result's diagnostics."""
@@ -169,6 +173,7 @@ class Preparation:
             "instrument_floor": self.instrument_floor,
             "model_error_needed": self.model_error_needed,
             "model_error_ceiling": None if self.instrument_floor is None else MODEL_ERROR_CEILING,
+            "recentring": self.recentring,
         }
         return {key: value for key, value in found.items() if value is not None}
 
@@ -200,7 +205,7 @@ def prepare_problem(
 def following_covariance(pilot, simulation, settings, diagonal, likelihood):
     """The covariance that follows each row's stand (:mod:`.likelihood.following`), scaled
     against the model waveform of the MAP the realisations were simulated about
-    (:func:`.recentre.recentred_simulation`)."""
+    (:func:`.recentre.recentre`)."""
     x, _ = pilot.space.from_unbounded(np.atleast_2d(simulation.estimate.u))
     signal = pilot.evaluate(x, keep_signal=True).signal[0]
     return FollowingCovariance.of(
@@ -252,16 +257,19 @@ def _prepare(observation, settings, rng) -> Preparation:
                 if exceeds_ceiling(needed, least):
                     prepared.notes.append(describe_misfit(needed))
             simulated = likelihood.with_fixed_discrepancy(covariance)
-            if settings.discrepancy_model == FOLLOWING:  # centred where the fixed one peaks
-                pilot = problem.with_likelihood(simulated).log_posterior
-                simulation = recentred_simulation(
-                    pilot, problem.instrument, rng, settings.realisations, settings.sampler,
-                    simulation,
+            if settings.discrepancy_model == FOLLOWING:  # the centre its covariance rates best
+                fixed = problem.with_likelihood(simulated).log_posterior
+                recentring = recentre(
+                    fixed, problem.instrument, rng, settings.realisations, settings.sampler,
+                    simulation, diagonal,
                 )  # fmt: skip
-                estimate = simulation.estimate
+                simulation = recentring.simulation
                 prepared.discrepancy_seconds = simulation.seconds
+                prepared.recentring = recentring.describe()
+                if recentring.chosen == "refound":  # searched under the fixed covariance
+                    estimate, pilot = simulation.estimate, fixed
                 simulated = simulated.with_following(
-                    following_covariance(pilot, simulation, settings, diagonal, simulated)
+                    following_covariance(fixed, simulation, settings, diagonal, simulated)
                 )
             problem = problem.with_likelihood(simulated)
             prepared.discrepancy_draws = DiscrepancyDraws(

@@ -137,6 +137,30 @@ def find_map(log_prob, space, rng, settings, seeds=None) -> MapEstimate:
     return best
 
 
+def local_optimum(log_prob, u, iterations=400) -> float:
+    """The highest ``log_prob`` an L-BFGS-B run from ``u`` reaches (batched gradients).
+
+    Parameters
+    ----------
+    log_prob : callable
+        Vectorised log-density of unbounded coordinates, (k, ndim) → (k,).
+    u : array (ndim,)
+    iterations : int
+
+    Returns
+    -------
+    float
+        The larger of ``log_prob(u)`` and the optimum's; −inf where neither is finite.
+    """
+    objective, _ = _batched_objective(log_prob)
+    start = np.atleast_2d(np.asarray(u, float))
+    result = minimize_in_lockstep(
+        objective, [start[0]], method="L-BFGS-B", options={"maxiter": iterations}
+    )[0]
+    best = min(float(result.fun), float(objective(start)[0][0]))
+    return -best if best < _PENALTY else -np.inf
+
+
 def _spread_out(results, count, spacing):
     """The first ``count`` of ``results`` (best first) that lie more than ``spacing``
     (unbounded units) from every one taken before them."""

@@ -1,5 +1,5 @@
-"""The following covariance re-centred: realisations simulated again about the optimum of
-the posterior the first simulation defines, not about a pilot that left the stand."""
+"""The centre of the following covariance: the pilot MAP or the optimum of the posterior
+its simulation defines, whichever the covariance simulated about it rates higher."""
 
 import numpy as np
 import pytest
@@ -8,8 +8,8 @@ from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
 from lidarinv.inference import InversionSettings, SamplerSettings, build_problem
 from lidarinv.inference.invert import prepare_problem
 from lidarinv.inference.passes.realisations import SimulatedDiscrepancy, realisation_covariance
-from lidarinv.inference.passes.recentre import recentred_simulation
-from lidarinv.inference.sampling.start import MapEstimate, laplace_covariance
+from lidarinv.inference.passes.recentre import CENTRES, recentre
+from lidarinv.inference.sampling.start import MapEstimate, laplace_covariance, local_optimum
 from lidarinv.inference.settings import RealisationSettings
 
 QUICK = SamplerSettings(candidates=256, starts=4, polish=1)
@@ -21,10 +21,10 @@ def shot():
     return synthetic_shot(SYNTHETIC_SHOTS["gedi-mixed"], np.random.default_rng(11))
 
 
-def test_a_pilot_that_dropped_the_canopy_is_left_for_the_fixed_posteriors_optimum(shot):
-    """A pilot whose stand stands at half the true top height: the simulation about it
-    defines a posterior whose optimum lies near the true top, and the re-centred simulation
-    is made there, with as many realisations."""
+def test_the_centre_whose_own_covariance_reaches_higher_is_kept(shot):
+    """A pilot at half the true top height: each candidate's optimum is at least its own
+    log-posterior at the centre, the higher one is chosen, and the realisations kept are
+    those simulated about it."""
     problem = build_problem(shot, InversionSettings(cohorts=1, sampler=QUICK))
     names = problem.space.names
     low = np.array([shot.truth[name] for name in names])
@@ -38,22 +38,38 @@ def test_a_pilot_that_dropped_the_canopy_is_left_for_the_fixed_posteriors_optimu
     covariance, simulation = realisation_covariance(
         pilot_posterior, problem.instrument, rng, FEW, QUICK, wrong_estimate
     )
-    likelihood = pilot_posterior.likelihood.with_fixed_discrepancy(covariance)
+    diagonal = np.full(covariance.shape[0], 1.0)
+    likelihood = pilot_posterior.likelihood.with_fixed_discrepancy(covariance + np.diag(diagonal))
     fixed = pilot_posterior.with_likelihood(likelihood)
-    recentred = recentred_simulation(fixed, problem.instrument, rng, FEW, QUICK, simulation)
-    assert isinstance(recentred, SimulatedDiscrepancy)
-    assert recentred.residuals.shape == simulation.residuals.shape
-    assert recentred.seconds > simulation.seconds
-    assert recentred.estimate.log_prob > float(fixed(wrong[None, :])[0, 0]) + 10.0
-    x, _ = problem.space.from_unbounded(recentred.estimate.u[None, :])
-    top = shot.truth["top_height"]
-    assert abs(x[0, names.index("top_height")] - top) < 0.2 * top  # the pilot was 0.5 off
+    recentring = recentre(fixed, problem.instrument, rng, FEW, QUICK, simulation, diagonal)
+    optima = recentring.optima
+    assert set(optima) == set(CENTRES)
+    assert optima["pilot"] > float(fixed(wrong[None, :])[0, 0]) + 10.0  # it climbs away
+    assert recentring.chosen == max(optima, key=optima.get)
+    kept = recentring.simulation
+    assert isinstance(kept, SimulatedDiscrepancy) and kept.seconds > simulation.seconds
+    assert kept.residuals.shape == simulation.residuals.shape
+    same = np.array_equal(kept.residuals, simulation.residuals)
+    assert same == (recentring.chosen == "pilot")
 
 
-def test_only_the_following_covariance_is_recentred(shot):
-    """Under ``following`` the start is the MAP of the posterior under the fixed
-    covariance, searched from the pilot's: that posterior rates it at least as high.
-    ``realisations`` keeps the pilot's MAP, simulated from the same generator."""
+def test_local_optimum_reaches_a_peak_and_refuses_no_support():
+    """On a Gaussian log-density the run from afar ends at its peak, 0; where the density
+    is nowhere finite it reports −inf."""
+    centre, scale = np.array([1.0, -2.0, 0.5]), np.array([0.5, 2.0, 1.0])
+
+    def gaussian(u):
+        return -0.5 * np.sum(((u - centre) / scale) ** 2, axis=1)
+
+    assert local_optimum(gaussian, np.zeros(3)) == pytest.approx(0.0, abs=1e-6)
+    nowhere = lambda u: np.full(u.shape[0], -np.inf)
+    assert local_optimum(nowhere, np.zeros(3)) == -np.inf
+
+
+def test_only_the_following_covariance_chooses_a_centre_and_says_which(shot):
+    """Under ``following`` the preparation records both centres' optima and starts from
+    the chosen one: the pilot's MAP where the pilot wins, else a point the posterior under
+    the pilot's covariance rates at least as high. ``realisations`` records none."""
     prepared = {}
     for model in ("realisations", "following"):
         settings = InversionSettings(
@@ -61,10 +77,15 @@ def test_only_the_following_covariance_is_recentred(shot):
         )
         prepared[model] = prepare_problem(shot, settings, np.random.default_rng(5))
         assert prepared[model].discrepancy_draws.residuals.shape[0] == FEW.count
-    fixed = prepared["realisations"].problem.log_posterior
+    assert "recentring" not in prepared["realisations"].diagnostics()
+    recorded = prepared["following"].diagnostics()["recentring"]
+    assert recorded["chosen"] in CENTRES and set(recorded["optima"]) == set(CENTRES)
+    best = max(recorded["optima"], key=recorded["optima"].get)
+    assert recorded["chosen"] == best
+    fixed = prepared["realisations"].problem.log_posterior  # the same generator's
     pilot = np.atleast_2d(prepared["realisations"].start)[:1]
-    recentred = np.atleast_2d(prepared["following"].start)[:1]
-    assert not np.allclose(recentred, pilot)
-    assert fixed(recentred)[0, 0] >= fixed(pilot)[0, 0] - 1e-6
-    draws = (prepared[m].discrepancy_draws.residuals for m in prepared)
-    assert not np.allclose(*draws)  # simulated again about the new centre
+    start = np.atleast_2d(prepared["following"].start)[:1]
+    if recorded["chosen"] == "pilot":
+        np.testing.assert_array_equal(start, pilot)
+    else:
+        assert fixed(start)[0, 0] >= fixed(pilot)[0, 0] - 1e-6
