@@ -166,6 +166,8 @@ def invert_one(job):
             record[name] = result.diagnostics[name]
     if "ground_modes" in result.diagnostics:  # the evidence for each of two grounds
         record["ground_modes"] = result.diagnostics["ground_modes"]
+    if "recentring" in result.diagnostics:  # a following discrepancy's centre
+        record["recentring"] = result.diagnostics["recentring"]
     if reference is not None:
         record["reference"] = reference_agreement(result, reference)
     canopy = result.footprint_canopy()
@@ -249,6 +251,10 @@ def statistics(records, instrument, per_shot=True) -> dict:
         # the expected stand's RH98 far below the footprint's own in most draws
         "stand_rh98_below_footprint": _count_flagged(done, STAND_RH98_FLAG),
         "median_instrument_floor": _percentile_of(done, "instrument_floor", 50),
+        # a following discrepancy centred on the fixed covariance's optimum, not the pilot
+        "centred_on_refound": int(
+            sum(r.get("recentring", {}).get("chosen") == "refound" for r in done)
+        ),
         # per parameter, the shots whose posterior stayed at its prior (records made
         # before the comparison existed have none)
         "prior_dominated": _prior_dominated_counts(done),
