@@ -153,12 +153,12 @@ def local_optimum(log_prob, u, iterations=400) -> float:
         The larger of ``log_prob(u)`` and the optimum's; −inf where neither is finite.
     """
     objective, _ = _batched_objective(log_prob)
-    start = np.atleast_2d(np.asarray(u, float))
+    start = np.asarray(u, float)
     result = minimize_in_lockstep(
-        objective, [start[0]], method="L-BFGS-B", options={"maxiter": iterations}
+        objective, [start], method="L-BFGS-B", options={"maxiter": iterations}
     )[0]
-    best = min(float(result.fun), float(objective(start)[0][0]))
-    return -best if best < _PENALTY else -np.inf
+    best = max(-float(result.fun), float(log_prob(start[None, :])[0]))
+    return best if best > -_PENALTY else -np.inf
 
 
 def _spread_out(results, count, spacing):
