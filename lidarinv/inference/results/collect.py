@@ -16,6 +16,7 @@ from ..sampling.sampler import SamplerRun
 from .footprint import (
     FOOTPRINT_BARE,
     FOOTPRINT_NO_STEM,
+    bare_ground_for,
     canopy_height_note,
     excess_sigmas,
     footprint_bare,
@@ -114,7 +115,7 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict, np.ndar
     footprint = np.full((x.shape[0], len(FOOTPRINT_RH)), np.nan)
     canopy_sigmas = np.full(x.shape[0], np.nan)
     conditioned = like.conditioning_obstacle is None
-    parts = []
+    parts, bare = [], bare_ground_for(problem, x)
     for first in range(0, x.shape[0], _CHUNK):
         rows = slice(first, first + _CHUNK)
         terms = post.evaluate(x[rows], keep_signal=True)
@@ -125,7 +126,7 @@ def sample_draws(problem: InversionProblem, x, rng) -> tuple[dict, dict, np.ndar
         values = problem.space.values(x[rows][good])
         values.update({name: draws[good] for name, draws in parts[-1].items()})
         mean = like.predictive_moments(terms.signal[good], values)[0]
-        canopy_sigmas[first + good] = excess_sigmas(problem, terms.signal[good], values)
+        canopy_sigmas[first + good] = excess_sigmas(problem, terms.signal[good], values, bare)
         heights[first + good] = product_relative_heights(
             mean, problem.window.axis, values["ground_elevation"], values["baseline"],
             problem.analysis, settings, levels,

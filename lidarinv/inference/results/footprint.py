@@ -28,6 +28,52 @@ _CHUNK = 1024
 _BROADENING_GRID = 24
 
 
+class BareGround:
+    """A flat, bare ground's return under a pulse widened by each of a range of broadenings,
+    tabulated once (:data:`_BROADENING_GRID` broadenings spanning the range) for every
+    sample that needs it: its cumulative fraction (:func:`cdf`) and its RH98
+    (:func:`rh98`), each sample's broadening taken to the nearest tabulated one.
+
+    Parameters
+    ----------
+    pulse : GaussianPulse or MeasuredPulse
+    broadening_m : array (n,) (m)
+        The broadenings σ the table must span (NaN ignored).
+    """
+
+    def __init__(self, pulse, broadening_m):
+        broadening = np.asarray(broadening_m, float)
+        finite = broadening[np.isfinite(broadening)]
+        low, high = (finite.min(), finite.max()) if finite.size else (0.0, 0.0)
+        self.grid = np.unique(np.linspace(low, high, _BROADENING_GRID))
+        self._cdfs = [ground_return_cdf(pulse, float(sigma)) for sigma in self.grid]
+        support_low, support_high = pulse.support(1e-6)
+        heights = []
+        for sigma, cdf in zip(self.grid, self._cdfs):
+            offsets = np.linspace(support_low - 6.0 * sigma, support_high + 6.0 * sigma, 4001)
+            heights.append(float(np.interp(0.98, cdf(offsets), offsets)))
+        self._rh98 = np.array(heights)
+
+    def rh98(self, broadening_m, bin_m) -> np.ndarray:
+        """RH98 (m) above the return's peak at each broadening (n,), interpolated between
+        the tabulated ones, plus one bin ``bin_m`` (m) (an RH spreads each bin's energy
+        over the bin); NaN where the broadening is."""
+        broadening = np.asarray(broadening_m, float)
+        heights = np.interp(broadening, self.grid, self._rh98) + float(bin_m)
+        return np.where(np.isfinite(broadening), heights, np.nan)
+
+    def cdf(self, broadening_m, offsets) -> np.ndarray:
+        """The return's cumulative fraction at ``offsets`` (n, k) (m from its peak), each
+        row's broadening (n,) taken to the nearest tabulated one."""
+        broadening = np.asarray(broadening_m, float)
+        nearest = np.abs(broadening[:, None] - self.grid[None, :]).argmin(axis=1)
+        out = np.empty(np.shape(offsets))
+        for j in np.unique(nearest):
+            rows = nearest == j
+            out[rows] = self._cdfs[j](offsets[rows])
+        return out
+
+
 def bare_ground_rh98(pulse, broadening_m, bin_m) -> np.ndarray:
     """RH98 of a bare ground: the height above a flat ground's return peak below which 98 %
     of that return lies, for the pulse widened by each sample's broadening σ, plus one bin
@@ -42,19 +88,9 @@ def bare_ground_rh98(pulse, broadening_m, bin_m) -> np.ndarray:
     Returns
     -------
     array (n,) (m)
+        NaN where the broadening is.
     """
-    broadening = np.asarray(broadening_m, float)
-    finite = broadening[np.isfinite(broadening)]
-    if not finite.size:
-        return np.full(broadening.shape, np.nan)
-    grid = np.linspace(finite.min(), finite.max(), _BROADENING_GRID)
-    low, high = pulse.support(1e-6)
-    heights = []
-    for sigma in np.unique(grid):
-        offsets = np.linspace(low - 6.0 * sigma, high + 6.0 * sigma, 4001)
-        cumulative = ground_return_cdf(pulse, float(sigma))(offsets)
-        heights.append(float(np.interp(0.98, cumulative, offsets)))
-    return np.interp(broadening, np.unique(grid), heights) + float(bin_m)
+    return BareGround(pulse, broadening_m).rh98(broadening_m, bin_m)
 
 
 def canopy_return_sigmas(problem: InversionProblem, x) -> np.ndarray:
@@ -83,6 +119,7 @@ def canopy_return_sigmas(problem: InversionProblem, x) -> np.ndarray:
     model, window, noise = problem.log_posterior.model, problem.window, problem.analysis.noise
     values = problem.space.values(x)
     sigmas = np.full(x.shape[0], np.nan)
+    bare = bare_ground_for(problem, x)
     for first in range(0, x.shape[0], _CHUNK):
         rows = slice(first, first + _CHUNK)
         part = {k: v[rows] if np.ndim(v) else v for k, v in values.items()}
@@ -96,11 +133,11 @@ def canopy_return_sigmas(problem: InversionProblem, x) -> np.ndarray:
             power = np.sum(whole * whole, axis=1)
             gain = np.sum(whole * recorded, axis=1) / np.where(power > 0, power, np.inf)
         part["gain"] = gain
-        sigmas[rows] = np.where(expected.valid, excess_sigmas(problem, whole, part), np.nan)
+        sigmas[rows] = np.where(expected.valid, excess_sigmas(problem, whole, part, bare), np.nan)
     return sigmas
 
 
-def excess_sigmas(problem: InversionProblem, waveforms, values) -> np.ndarray:
+def excess_sigmas(problem: InversionProblem, waveforms, values, bare=None) -> np.ndarray:
     """:func:`canopy_return_sigmas` of given model waveforms.
 
     Parameters
@@ -111,6 +148,9 @@ def excess_sigmas(problem: InversionProblem, waveforms, values) -> np.ndarray:
     values : dict of arrays (n,)
         Each row's parameters: ``ground_elevation``, ``gain`` (DN), and
         ``pulse_broadening`` (m) where the space has it.
+    bare : BareGround, optional
+        A table spanning the rows' broadenings (:func:`bare_ground_for`), made once for
+        every chunk of a posterior's samples; made for these rows if omitted.
 
     Returns
     -------
@@ -120,12 +160,12 @@ def excess_sigmas(problem: InversionProblem, waveforms, values) -> np.ndarray:
     n = waveforms.shape[0]
     broadening = np.asarray(values.get("pulse_broadening", np.zeros(n)), float) * np.ones(n)
     bin_m = float(window.axis[1] - window.axis[0])
-    pulse = problem.instrument.pulse
-    reach = bare_ground_rh98(pulse, broadening, bin_m)
+    bare = BareGround(problem.instrument.pulse, broadening) if bare is None else bare
+    reach = bare.rh98(broadening, bin_m)
     edges = np.append(window.axis - 0.5 * bin_m, window.axis[-1] + 0.5 * bin_m)
     peak = _ground_peak(waveforms, window.axis, values["ground_elevation"], reach)
-    bare = np.diff(_bare_cdf(pulse, broadening, edges[None, :] - peak[:, None]), axis=1)
-    excess = waveforms - np.sum(waveforms, axis=1, keepdims=True) * bare
+    share = np.diff(bare.cdf(broadening, edges[None, :] - peak[:, None]), axis=1)
+    excess = waveforms - np.sum(waveforms, axis=1, keepdims=True) * share
     above = window.axis[None, :] > (peak + reach)[:, None]
     gain = np.asarray(values["gain"], float) * np.ones(n)
     e = np.where(above, np.clip(excess, 0.0, None), 0.0) * gain[:, None]
@@ -150,18 +190,12 @@ def _ground_peak(waveforms, axis, ground, reach) -> np.ndarray:
     return axis[k] + np.clip(shift, -0.5, 0.5) * (axis[1] - axis[0])
 
 
-def _bare_cdf(pulse, broadening_m, offsets) -> np.ndarray:
-    """A bare ground's return's cumulative fraction at ``offsets`` (n, k) (m from its peak),
-    the pulse widened by each row's broadening (n,) taken to the nearest of
-    :data:`_BROADENING_GRID` values."""
-    low, high = np.nanmin(broadening_m), np.nanmax(broadening_m)
-    grid = np.unique(np.linspace(low, high, _BROADENING_GRID))
-    nearest = np.abs(np.asarray(broadening_m)[:, None] - grid[None, :]).argmin(axis=1)
-    out = np.empty(offsets.shape)
-    for j in np.unique(nearest):
-        rows = nearest == j
-        out[rows] = ground_return_cdf(pulse, float(grid[j]))(offsets[rows])
-    return out
+def bare_ground_for(problem: InversionProblem, x) -> BareGround:
+    """The :class:`BareGround` table spanning the broadenings of posterior samples ``x``
+    (n, ndim) (physical units): none where the space has no broadening."""
+    values = problem.space.values(x)
+    broadening = values.get("pulse_broadening", np.zeros(x.shape[0]))
+    return BareGround(problem.instrument.pulse, np.asarray(broadening, float) * np.ones(x.shape[0]))
 
 
 def _noise_lags(autocorrelation) -> np.ndarray:

@@ -425,7 +425,7 @@ def run_sampler(
         by_coordinate = coordinates_monitor(range(ndim))
         coordinates = _diagnostics(sampler, burn, tau, s, by_coordinate, bulk_only=True)
         coordinate_tau = np.array([coordinates[i]["tau"] for i in range(ndim)])
-        if not converged or s.quantile_mcse_max is None:  # the result reports quantile MCSE
+        if not converged:  # a passing check's diagnostics hold the quantiles' MCSE
             quantities = _diagnostics(sampler, burn, tau, s, monitor)
         if not converged:
             shortfalls = _rule(s).shortfalls(quantities, sampler.iteration - burn)
@@ -497,16 +497,15 @@ def _diagnostics(sampler, discard, tau, s: SamplerSettings, monitor, quantile_er
 def _check_ess_rhat(sampler, discard, tau, s: SamplerSettings, monitor):
     """The ``"ess-rhat"`` check: the monitored quantities' τ, whether they pass, what
     fails, and their diagnostics. The bulk ESS comes first: where it already fails the
-    rule (the usual check, before the chain is long enough) the tail ESS and R̂ are not
-    computed; the quantile MCSE only where the rule asks for it (the result's is computed
-    once, after the run)."""
+    rule (the usual check, before the chain is long enough) the tail ESS, R̂ and the
+    quantiles' MCSE are not computed. Where they are, a passing check's diagnostics are
+    the result's: those of the very draws it judged."""
     rule, kept = _rule(s), sampler.iteration - discard
     draws, thin = _monitored_draws(sampler, discard, tau, s, monitor)
     quantities = quantity_diagnostics(draws, thin, bulk_only=True)
     shortfalls = rule.bulk_shortfalls(quantities, kept)
-    if not shortfalls:
-        gated = s.quantile_mcse_max is not None
-        quantities = quantity_diagnostics(draws, thin, quantile_errors=gated)
+    if not shortfalls:  # with the quantiles' MCSE, which a passing check's result reports
+        quantities = quantity_diagnostics(draws, thin)
         shortfalls = rule.shortfalls(quantities, kept)
     new_tau = np.array([d["tau"] for d in quantities.values()])
     new_tau = np.where(np.isnan(new_tau), np.inf, new_tau)

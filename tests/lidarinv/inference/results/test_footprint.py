@@ -4,6 +4,7 @@ given that it holds one."""
 
 import numpy as np
 import pytest
+from scipy.special import ndtr
 from tiny_results import tiny_result
 
 from forward.pulse import GaussianPulse
@@ -15,6 +16,7 @@ from lidarinv.inference.results.collect import footprint_top_height
 from lidarinv.inference.results.flags import is_warning
 from lidarinv.inference.results.footprint import (
     UNSEEN_TOP_NOTE,
+    BareGround,
     bare_ground_rh98,
     canopy_height_note,
     footprint_no_stem,
@@ -54,6 +56,21 @@ def test_a_bare_ground_return_reaches_its_pulse_s_98_percent_quantile():
     broadening = np.array([0.0, 0.5, 1.5])
     expected = 2.0537 * np.hypot(sigma_p, broadening) + 0.15
     np.testing.assert_allclose(bare_ground_rh98(pulse, broadening, 0.15), expected, atol=0.02)
+
+
+def test_a_bare_ground_table_gives_each_broadening_its_widened_gaussian():
+    """One table spanning the broadenings of many samples gives each sample's bare ground
+    the cumulative fraction of a Gaussian of σ = √(σp² + σb²) about its peak, and the
+    RH98 that a table made for that sample alone gives."""
+    pulse = GaussianPulse(10.0)
+    broadening = np.linspace(0.0, 2.0, 200)
+    table = BareGround(pulse, broadening)
+    offsets = np.tile(np.linspace(-3.0, 3.0, 13), (broadening.size, 1))
+    sigma = np.hypot(pulse.sigma_m, broadening)[:, None]
+    np.testing.assert_allclose(table.cdf(broadening, offsets), ndtr(offsets / sigma), atol=0.01)
+    alone = [bare_ground_rh98(pulse, [b], 0.15)[0] for b in broadening[::40]]
+    np.testing.assert_allclose(table.rh98(broadening[::40], 0.15), alone, atol=0.01)
+    assert np.isnan(table.rh98([np.nan], 0.15)[0])
 
 
 def _bare(p_stem, seed=0, p_bare=None):
