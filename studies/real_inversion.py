@@ -168,6 +168,8 @@ def invert_one(job):
         record["ground_modes"] = result.diagnostics["ground_modes"]
     if "recentring" in result.diagnostics:  # a following discrepancy's centre
         record["recentring"] = result.diagnostics["recentring"]
+    if "realisations" in result.diagnostics:  # asked, simulated, the first ones' spread
+        record["realisations"] = result.diagnostics["realisations"]
     if reference is not None:
         record["reference"] = reference_agreement(result, reference)
     canopy = result.footprint_canopy()
@@ -259,6 +261,14 @@ def statistics(records, instrument, per_shot=True) -> dict:
         # before the comparison existed have none)
         "prior_dominated": _prior_dominated_counts(done),
         "median_residual_scale": _percentile_of(done, "residual_scale", 50),
+        # the first share of the realisations sufficed (the rest were not simulated)
+        "first_realisations_sufficed": int(
+            sum(
+                r["realisations"]["simulated"] < r["realisations"]["asked"]
+                for r in done
+                if "realisations" in r
+            )
+        ),
         "median_realisation_spread": _percentile_of(done, "realisation_spread", 50),
         "p90_realisation_spread": _percentile_of(done, "realisation_spread", 90),
         "p90_residual_scale": _percentile_of(done, "residual_scale", 90),

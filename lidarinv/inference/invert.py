@@ -30,6 +30,7 @@ from .passes.model_error import (
     exceeds_ceiling,
     shot_floor,
 )
+from .passes.realisation_count import EnoughRealisations
 from .passes.realisations import PER_BIN_NOTE, realisation_covariance
 from .passes.recentre import recentre
 from .problem import InversionProblem, build_problem, fixed_discrepancy
@@ -152,6 +153,9 @@ class Preparation:
     recentring : dict or None
         Under ``following``, the centre chosen and each candidate's optimum
         (:meth:`.recentre.Recentring.describe`).
+    realisations : dict or None
+        The realisations asked and simulated, and the spread the first of them left
+        (:meth:`.realisation_count.EnoughRealisations.describe`), where simulated.
     """
 
     problem: InversionProblem
@@ -164,6 +168,7 @@ class Preparation:
     competing_grounds: list | None = None
     discrepancy_draws: DiscrepancyDraws | None = None
     recentring: dict | None = None
+    realisations: dict | None = None
 
     def diagnostics(self) -> dict:
         """The passes' outcomes for the result's diagnostics."""
@@ -174,6 +179,7 @@ class Preparation:
             "model_error_needed": self.model_error_needed,
             "model_error_ceiling": None if self.instrument_floor is None else MODEL_ERROR_CEILING,
             "recentring": self.recentring,
+            "realisations": self.realisations,
         }
         return {key: value for key, value in found.items() if value is not None}
 
@@ -236,16 +242,18 @@ def _prepare(observation, settings, rng) -> Preparation:
     if settings.discrepancy_model in SIMULATED_MODELS:
         obstacle = covariance_obstacle(problem.window, settings.shot_factor)
         if obstacle is None:
+            least = settings.realisations.instrument_floor
+            unit = fixed_discrepancy(problem.shot, replace(settings, discrepancy=1.0))
+            enough = EnoughRealisations(pilot, settings.realisations, least**2 * unit, rng)
             covariance, simulation = realisation_covariance(
                 problem.log_posterior, problem.instrument, rng, settings.realisations,
-                settings.sampler, estimate,
+                settings.sampler, estimate, enough,
             )  # fmt: skip
             estimate = simulation.estimate
             prepared.discrepancy_seconds = simulation.seconds
-            least = settings.realisations.instrument_floor
+            prepared.realisations = enough.describe(simulation.residuals.shape[0])
             diagonal = np.zeros(covariance.shape[0])
             if least > 0:  # the instrument model's own error, on the diagonal
-                unit = fixed_discrepancy(problem.shot, replace(settings, discrepancy=1.0))
                 simulated_only = likelihood.with_fixed_discrepancy(covariance)
                 needed = shot_floor(pilot, simulated_only, estimate, unit, least)
                 floor = bounded_floor(needed, least)

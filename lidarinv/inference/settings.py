@@ -7,6 +7,7 @@ priors file holds, beside the parameters' priors, tables that set some of these
 (:data:`.priors_file.SETTINGS_TABLES`: ``[favd]``, ``[ground]``, ``[discrepancy]``).
 """
 
+import math
 from dataclasses import asdict, dataclass, field, replace
 
 from forward.expected import ModelSettings
@@ -71,6 +72,14 @@ class RealisationSettings:
         by 0.63 posterior sd (median of eight shots) over resamples of them, where GEDI
         shots moved by 0.01 and one-storey LVIS shots by about 0.3; the spread falls as
         one over the square root of the count.
+    first_fraction : float
+        The share of ``count`` simulated first; the rest only where these leave the
+        answer moving by more than ``spread_target`` (:mod:`.passes.realisation_count`).
+        1 simulates them all at once.
+    spread_target : float
+        The largest spread (posterior sd) of the Laplace ball's quantiles over bootstrap
+        resamples of the first realisations at which they suffice. The post-sampling
+        spread (``resamples``) is measured on the realisations used, whatever their count.
     """
 
     count: int = 256
@@ -81,6 +90,8 @@ class RealisationSettings:
     instrument_floor: float = 0.1
     resamples: int = 16
     two_cohort_factor: int = 4
+    first_fraction: float = 0.25
+    spread_target: float = 0.1
 
     def __post_init__(self):
         if not self.instrument_floor >= 0.0:
@@ -93,9 +104,18 @@ class RealisationSettings:
             raise ValueError(f"shrinkage must lie in [0, 1], got {self.shrinkage}")
         if not (self.ball > 0 and self.plot_diameters > 0):
             raise ValueError("ball and plot_diameters must be positive")
+        if not 0.0 < self.first_fraction <= 1.0:
+            raise ValueError(f"first_fraction must lie in (0, 1], got {self.first_fraction}")
+        if not self.spread_target >= 0.0:
+            raise ValueError(f"spread_target must be ≥ 0, got {self.spread_target}")
         if not (isinstance(self.two_cohort_factor, int) and self.two_cohort_factor >= 1):
             factor = self.two_cohort_factor
             raise ValueError(f"two_cohort_factor must be an integer ≥ 1, got {factor}")
+
+    @property
+    def first_count(self) -> int:
+        """Realisations simulated first: ``first_fraction`` of ``count``, at least 2."""
+        return min(self.count, max(2, math.ceil(self.first_fraction * self.count)))
 
     def for_cohorts(self, cohorts) -> "RealisationSettings":
         """These settings for a stand model of ``cohorts`` height cohorts: with two, the

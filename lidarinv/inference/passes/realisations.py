@@ -274,7 +274,7 @@ class SimulatedDiscrepancy:
 
 def realisation_covariance(
     pilot: LogPosterior, instrument, rng, settings: RealisationSettings | None = None,
-    sampler=None, estimate=None,
+    sampler=None, estimate=None, enough=None,
 ):  # fmt: skip
     """The discrepancy covariance of a shot, simulated around its pilot MAP.
 
@@ -290,6 +290,11 @@ def realisation_covariance(
         The MAP search's settings (:func:`.sampling.start.find_map`).
     estimate : MapEstimate, optional
         The pilot's MAP search, if already run.
+    enough : callable, optional
+        (ball draws (count, ndim) unbounded, residuals (k, bins)) → bool: whether the
+        first ``settings.first_count`` realisations suffice
+        (:class:`.realisation_count.EnoughRealisations`); the rest of ``settings.count``
+        are simulated where they do not. Without it, all ``count`` are.
 
     Returns
     -------
@@ -310,8 +315,12 @@ def realisation_covariance(
     mode = Mode(estimate.u, estimate.log_prob, estimate.covariance)
     draws = initial_ball(log_prob, [mode], settings.ball, settings.count, rng)
     x, _ = space.from_unbounded(draws)
-    residuals = realisation_residuals(
-        pilot, instrument, x, rng, settings.plot_diameters, settings.accuracy
+    first = settings.count if enough is None else settings.first_count
+    simulate = lambda rows: realisation_residuals(  # noqa: E731
+        pilot, instrument, x[rows], rng, settings.plot_diameters, settings.accuracy
     )
+    residuals = simulate(slice(0, first))  # each stand its own stream: the same stands
+    if first < settings.count and not enough(draws, residuals):  # as all in one call
+        residuals = np.concatenate([residuals, simulate(slice(first, None))])
     covariance = discrepancy_covariance(residuals, settings.shrinkage)
     return covariance, SimulatedDiscrepancy(time.perf_counter() - clock, estimate, residuals)

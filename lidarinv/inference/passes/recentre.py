@@ -19,7 +19,7 @@ likelihood of the centre over two candidates.
 """
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -84,8 +84,9 @@ def recentre(posterior, instrument, rng, settings, sampler, simulation, diagonal
     pilot = np.asarray(simulation.estimate.u, float)
     log_prob = lambda u: posterior(u)[:, 0]  # noqa: E731
     estimate = find_map(log_prob, posterior.space, rng, sampler, pilot[None, :])
+    same_count = replace(settings, count=simulation.residuals.shape[0])  # judged alike
     covariance, again = realisation_covariance(
-        posterior, instrument, rng, settings, sampler, estimate
+        posterior, instrument, rng, same_count, sampler, estimate
     )
     likelihood = posterior.likelihood.with_fixed_discrepancy(covariance + np.diag(diagonal))
     about_refound = posterior.with_likelihood(likelihood)

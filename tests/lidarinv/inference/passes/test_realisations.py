@@ -196,7 +196,7 @@ def test_a_two_cohort_model_simulates_more_realisations_and_records_them(shot):
     and the prepared problem's settings (which the result records) say how many."""
     from lidarinv.inference.invert import prepare_problem
 
-    base = RealisationSettings(count=6, two_cohort_factor=2, resamples=0)
+    base = RealisationSettings(count=6, two_cohort_factor=2, resamples=0, first_fraction=1.0)
     assert base.for_cohorts(1) == base and base.for_cohorts(2).count == 12
     with pytest.raises(ValueError, match="two_cohort_factor"):
         RealisationSettings(two_cohort_factor=0)
