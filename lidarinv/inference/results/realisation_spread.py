@@ -200,11 +200,18 @@ def add_realisation_spread(result, problem, draws: DiscrepancyDraws, rng, resamp
     result.diagnostics.setdefault("seconds", {})["realisation_spread"] = time.perf_counter() - clock
     moved = {n: v for n, v in found.spread.items() if v > FLAG_SPREAD_SD}
     if moved:
-        worst = max(moved, key=moved.get)
+        worst, simulated = max(moved, key=moved.get), draws.residuals.shape[0]
+        asked = problem.settings.realisations.count
+        remedy = (
+            "raise RealisationSettings.count"
+            if simulated >= asked
+            else f"the first {simulated} of {asked} seemed enough before sampling: set "
+            "RealisationSettings.first_fraction = 1"
+        )
         result.flags.append(
-            f"{SEED_SPREAD_NOTE} {draws.residuals.shape[0]} realisations may "
-            f"move {worst}'s quantiles by {moved[worst]:.2f} posterior sd (bootstrap): the "
-            "answer depends on the seed; raise RealisationSettings.count"
+            f"{SEED_SPREAD_NOTE} {simulated} realisations may move {worst}'s quantiles "
+            f"by {moved[worst]:.2f} posterior sd (bootstrap): the answer depends on the "
+            f"seed; {remedy}"
         )
 
 

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from lidarinv.examples import SYNTHETIC_SHOTS, synthetic_shot
-from lidarinv.inference import InversionSettings, SamplerSettings
+from lidarinv.inference import InversionSettings, SamplerSettings, invert_shot
 from lidarinv.inference.invert import prepare_problem
+from lidarinv.inference.results import realisation_spread as spread_module
 from lidarinv.inference.settings import RealisationSettings
 
 QUICK = SamplerSettings(candidates=64, starts=2, polish=1)
@@ -38,6 +39,18 @@ def test_the_first_realisations_suffice_only_where_their_spread_is_within_the_ta
         record = prepared.diagnostics()["realisations"]
         assert record["asked"] == 16 and record["simulated"] == simulated
         assert record["first_spread"] > 0.0
+
+
+def test_a_large_spread_after_sampling_says_the_first_realisations_were_too_few(shot, monkeypatch):
+    """Where the first realisations seemed enough before sampling but the spread measured
+    after it is flagged, the flag asks for all of them, not for a larger count."""
+    monkeypatch.setattr(spread_module, "FLAG_SPREAD_SD", 0.0)  # every spread is too large
+    realisations = RealisationSettings(count=16, spread_target=np.inf, resamples=4)
+    quick = SamplerSettings(max_steps=100, check_every=100, candidates=64, starts=2, polish=1)
+    settings = InversionSettings(realisations=realisations, sampler=quick, cohorts=1)
+    result = invert_shot(shot, settings, rng=np.random.default_rng(2))
+    flag = next(f for f in result.flags if f.startswith(spread_module.SEED_SPREAD_NOTE))
+    assert "the first 4 of 16" in flag and "first_fraction = 1" in flag
 
 
 def test_the_first_count_is_a_share_of_the_count_and_settings_are_checked():

@@ -85,7 +85,9 @@ def test_an_inversion_reports_the_spread_and_flags_a_large_one(shot, tmp_path, m
     monkeypatch.setattr(spread_module, "FLAG_SPREAD_SD", 0.0)  # every spread is too large
     quick = SamplerSettings(max_steps=100, check_every=100, candidates=64, starts=2, polish=1)
     settings = InversionSettings(
-        realisations=RealisationSettings(count=16, resamples=4), sampler=quick, cohorts=1
+        realisations=RealisationSettings(count=16, resamples=4, first_fraction=1.0),
+        sampler=quick,
+        cohorts=1,
     )
     result = invert_shot(shot, settings, rng=np.random.default_rng(2))
     found = result.diagnostics["realisation_spread"]
@@ -98,7 +100,9 @@ def test_an_inversion_reports_the_spread_and_flags_a_large_one(shot, tmp_path, m
     result.save(tmp_path / "r.h5")
     assert InversionResult.load(tmp_path / "r.h5").diagnostics["realisation_spread"] == found
     none = InversionSettings(
-        realisations=RealisationSettings(count=16, resamples=0), sampler=quick, cohorts=1
+        realisations=RealisationSettings(count=16, resamples=0, first_fraction=1.0),
+        sampler=quick,
+        cohorts=1,
     )
     quiet = invert_shot(shot, none, rng=np.random.default_rng(2))
     assert "realisation_spread" not in quiet.diagnostics
