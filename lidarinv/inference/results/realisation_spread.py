@@ -215,13 +215,18 @@ def add_realisation_spread(result, problem, draws: DiscrepancyDraws, rng, resamp
         )
 
 
-def describe_spread(found) -> str:
-    """The summary's line on how far another draw of the realisations moves the quantiles."""
+def describe_spread(found, counts=None) -> str:
+    """The summary's line on how far another draw of the realisations moves the quantiles
+    (``found``: ``diagnostics["realisation_spread"]``), with how many were simulated of
+    how many asked (``counts``: ``diagnostics["realisations"]``) where known."""
     cells = ", ".join(f"{name} {v:.2f}" for name, v in found["spread"].items())
+    how_many = ""
+    if counts is not None:
+        how_many = f"{counts['simulated']} of {counts['asked']} "
     return (
-        "spread of the 5/50/95 % quantiles over the discrepancy's realisations (posterior "
-        f"sd, {found['resamples']} bootstrap resamples, weights' effective fraction ≥ "
-        f"{found['weight_fraction']:.2f}): {cells}"
+        f"spread of the 5/50/95 % quantiles over the discrepancy's {how_many}realisations "
+        f"(posterior sd, {found['resamples']} bootstrap resamples, weights' effective "
+        f"fraction ≥ {found['weight_fraction']:.2f}): {cells}"
     )
 
 

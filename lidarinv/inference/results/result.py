@@ -221,7 +221,7 @@ class InversionResult:
         )
         lines += _convergence_lines(d.get("quantities", {}))
         if "realisation_spread" in d:
-            lines.append(describe_spread(d["realisation_spread"]))
+            lines.append(describe_spread(d["realisation_spread"], d.get("realisations")))
         unconstrained = describe_prior_dominated(d.get("prior_learning"))
         if unconstrained:
             lines.append(unconstrained)

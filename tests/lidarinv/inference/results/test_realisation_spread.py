@@ -94,11 +94,13 @@ def test_an_inversion_reports_the_spread_and_flags_a_large_one(shot, tmp_path, m
     assert found["resamples"] == 4 and 0.0 < found["weight_fraction"] <= 1.0
     assert {"top_height", "cover"} <= set(found["spread"])
     assert all(np.isfinite(v) and v >= 0 for v in found["spread"].values())
-    assert "over the discrepancy's realisations" in result.summary_table()
+    assert "over the discrepancy's 16 of 16 realisations" in result.summary_table()
     assert result.summary_row()["max_realisation_spread"] == max(found["spread"].values())
     assert any("raise RealisationSettings.count" in flag for flag in result.flags)
     result.save(tmp_path / "r.h5")
-    assert InversionResult.load(tmp_path / "r.h5").diagnostics["realisation_spread"] == found
+    loaded = InversionResult.load(tmp_path / "r.h5").diagnostics
+    assert loaded["realisation_spread"] == found
+    assert loaded["realisations"] == result.diagnostics["realisations"]
     none = InversionSettings(
         realisations=RealisationSettings(count=16, resamples=0, first_fraction=1.0),
         sampler=quick,
