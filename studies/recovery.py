@@ -217,6 +217,8 @@ def one_shot(task):
     row["max_tau"] = float(np.max(result.diagnostics["tau"]))
     row["cohorts"] = result.settings["cohorts"]
     row["start_modes"] = int(result.diagnostics["start_modes"])
+    if "realisations" in result.diagnostics:  # asked, simulated, the first ones' spread
+        row["realisations"] = result.diagnostics["realisations"]
     row["log_prob"] = {"best_in_chain": result.diagnostics["map_log_prob"]}
     row["log_prob"]["truth"] = truth_log_prob(obs, settings)
     summary = result.summary()
