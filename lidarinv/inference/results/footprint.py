@@ -31,8 +31,8 @@ _BROADENING_GRID = 24
 class BareGround:
     """A flat, bare ground's return under a pulse widened by each of a range of broadenings,
     tabulated once (:data:`_BROADENING_GRID` broadenings spanning the range) for every
-    sample that needs it: its cumulative fraction (:func:`cdf`) and its RH98
-    (:func:`rh98`), each sample's broadening taken to the nearest tabulated one.
+    sample that needs it: its cumulative fraction (:meth:`cdf`) and its RH98
+    (:meth:`rh98`), each sample's broadening taken to the nearest tabulated one.
 
     Parameters
     ----------
@@ -192,7 +192,7 @@ def _ground_peak(waveforms, axis, ground, reach) -> np.ndarray:
 
 def bare_ground_for(problem: InversionProblem, x) -> BareGround:
     """The :class:`BareGround` table spanning the broadenings of posterior samples ``x``
-    (n, ndim) (physical units): none where the space has no broadening."""
+    (n, ndim) (physical units); the pulse as it is where the space has no broadening."""
     values = problem.space.values(x)
     broadening = values.get("pulse_broadening", np.zeros(x.shape[0]))
     return BareGround(problem.instrument.pulse, np.asarray(broadening, float) * np.ones(x.shape[0]))
