@@ -427,7 +427,6 @@ def run_sampler(
         coordinate_tau = np.array([coordinates[i]["tau"] for i in range(ndim)])
         if not converged:  # a passing check's diagnostics hold the quantiles' MCSE
             quantities = _diagnostics(sampler, burn, tau, s, monitor)
-        if not converged:
             shortfalls = _rule(s).shortfalls(quantities, sampler.iteration - burn)
         tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else np.inf
         # 2/5 τ apart at the default resolution: 50 draws a walker at 20 τ
