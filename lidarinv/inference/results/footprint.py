@@ -55,9 +55,10 @@ class BareGround:
         self._rh98 = np.array(heights)
 
     def rh98(self, broadening_m, bin_m) -> np.ndarray:
-        """RH98 (m) above the return's peak at each broadening (n,), interpolated between
-        the tabulated ones, plus one bin ``bin_m`` (m) (an RH spreads each bin's energy
-        over the bin); NaN where the broadening is."""
+        """RH98 (m): the height above the return's peak below which 98 % of it lies, at
+        each broadening (n,), interpolated between the tabulated ones, plus one bin
+        ``bin_m`` (m) (an RH spreads each bin's energy over the bin); NaN where the
+        broadening is."""
         broadening = np.asarray(broadening_m, float)
         heights = np.interp(broadening, self.grid, self._rh98) + float(bin_m)
         return np.where(np.isfinite(broadening), heights, np.nan)
@@ -72,25 +73,6 @@ class BareGround:
             rows = nearest == j
             out[rows] = self._cdfs[j](offsets[rows])
         return out
-
-
-def bare_ground_rh98(pulse, broadening_m, bin_m) -> np.ndarray:
-    """RH98 of a bare ground: the height above a flat ground's return peak below which 98 %
-    of that return lies, for the pulse widened by each sample's broadening σ, plus one bin
-    (an RH spreads each bin's energy over the bin).
-
-    Parameters
-    ----------
-    pulse : GaussianPulse or MeasuredPulse
-    broadening_m : array (n,) (m)
-    bin_m : float (m)
-
-    Returns
-    -------
-    array (n,) (m)
-        NaN where the broadening is.
-    """
-    return BareGround(pulse, broadening_m).rh98(broadening_m, bin_m)
 
 
 def canopy_return_sigmas(problem: InversionProblem, x) -> np.ndarray:
@@ -109,7 +91,7 @@ def canopy_return_sigmas(problem: InversionProblem, x) -> np.ndarray:
         its waveform (widened by its broadening, scaled by its gain) less a bare ground's
         return of the same energy under the same broadening, peaking where the waveform's
         ground return peaks, where positive, over the bins above that bare ground's RH98
-        (:func:`bare_ground_rh98`); S = Σ e², σ the noise of Σ e·n under the shot's
+        (:meth:`BareGround.rh98`); S = Σ e², σ the noise of Σ e·n under the shot's
         measured σ and autocorrelation. Low vegetation within the ground's return shifts
         its peak up and the sample's ground down, and the waveform cannot tell it from a
         ground: only what a bare ground cannot return counts. The gain is the sample's, or

@@ -17,7 +17,6 @@ from lidarinv.inference.results.flags import is_warning
 from lidarinv.inference.results.footprint import (
     UNSEEN_TOP_NOTE,
     BareGround,
-    bare_ground_rh98,
     canopy_height_note,
     footprint_no_stem,
     stand_rh98_note,
@@ -55,7 +54,8 @@ def test_a_bare_ground_return_reaches_its_pulse_s_98_percent_quantile():
     sigma_p = pulse.sigma_m
     broadening = np.array([0.0, 0.5, 1.5])
     expected = 2.0537 * np.hypot(sigma_p, broadening) + 0.15
-    np.testing.assert_allclose(bare_ground_rh98(pulse, broadening, 0.15), expected, atol=0.02)
+    rh98 = BareGround(pulse, broadening).rh98(broadening, 0.15)
+    np.testing.assert_allclose(rh98, expected, atol=0.02)
 
 
 def test_a_bare_ground_table_gives_each_broadening_its_widened_gaussian():
@@ -68,7 +68,7 @@ def test_a_bare_ground_table_gives_each_broadening_its_widened_gaussian():
     offsets = np.tile(np.linspace(-3.0, 3.0, 13), (broadening.size, 1))
     sigma = np.hypot(pulse.sigma_m, broadening)[:, None]
     np.testing.assert_allclose(table.cdf(broadening, offsets), ndtr(offsets / sigma), atol=0.01)
-    alone = [bare_ground_rh98(pulse, [b], 0.15)[0] for b in broadening[::40]]
+    alone = [BareGround(pulse, [b]).rh98([b], 0.15)[0] for b in broadening[::40]]
     np.testing.assert_allclose(table.rh98(broadening[::40], 0.15), alone, atol=0.01)
     assert np.isnan(table.rh98([np.nan], 0.15)[0])
 
