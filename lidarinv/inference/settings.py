@@ -344,6 +344,7 @@ class InversionSettings:
         out["favd_range"] = None if self.favd_range is None else list(self.favd_range)
         out["sampler"] = {k: v for k, v in self.sampler.__dict__.items()}
         out["sampler"]["moves"] = [list(m) for m in self.sampler.moves]
+        out["sampler"]["importance"] = asdict(self.sampler.importance)
         out["model"] = dict(self.model.__dict__)
         out["priors"] = {
             name: {

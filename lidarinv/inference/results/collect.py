@@ -210,8 +210,16 @@ def _misfit_flags(fit) -> list:
     ]
 
 
-def _flat(array, run: SamplerRun):
-    return array[run.burn :: run.thin].reshape(-1, *array.shape[2:])
+def _importance_diagnostics(run: SamplerRun) -> dict:
+    """How the draws were made: ``"sampling"`` is ``"importance"`` where weighted draws
+    from a t fitted to the chain ended the run (with their Pareto k̂, ESS, count and the
+    step the t was fitted at), else ``"chain"``; and every try's (step, k̂, ESS)."""
+    out = {"sampling": "chain", "importance_tries": [list(t) for t in run.importance_tries]}
+    if run.importance is not None:
+        i = run.importance
+        out["sampling"] = "importance"
+        out["importance"] = {"khat": i.khat, "ess": i.ess, "draws": len(i.u), "step": i.step}
+    return out
 
 
 def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> InversionResult:
@@ -234,10 +242,8 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
         crown-volume profile and the run's diagnostics.
     """
     space, post = problem.space, problem.log_posterior
-    u = _flat(run.chain, run)
+    u, log_prob, blobs = run.draws()
     x, _ = space.from_unbounded(u)
-    log_prob = _flat(run.log_prob, run)
-    blobs = _flat(run.blobs, run)
     derived = {name: blobs[:, i] for i, name in enumerate(BLOB_NAMES)}
     derived[FOOTPRINT_TOP] = footprint_top_height(problem, x, derived["density"], rng)
     derived[FOOTPRINT_NO_STEM] = footprint_no_stem(problem, derived["density"])
@@ -280,8 +286,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
         units[FOOTPRINT_COVER] = "1"
     # after every other use of the rng, so that the rest is drawn as without
     prior = support_prior_draws(post, space, rng)
-    n_kept = run.chain.shape[0] - run.burn
-    ess = n_kept * run.chain.shape[1] / np.where(np.isfinite(run.tau), run.tau, np.inf)
+    ess = run.coordinate_ess()
     # a conditioned tallest stem's prior is the stand's law, which the draws do not follow
     compared = [name for name in space.names if name != TALLEST_STEM]
     columns = [space.names.index(name) for name in compared]
@@ -328,6 +333,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             "tau_history": [[int(i), t] for i, t in run.tau_history],
             # the monitored reported quantities: bulk and tail ESS, split R̂, τ (steps)
             "quantities": run.quantities,
+            **_importance_diagnostics(run),
             # each parameter's posterior against its prior (:mod:`.prior_learning`)
             "prior_learning": learning,
             **fit,

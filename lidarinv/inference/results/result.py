@@ -219,6 +219,12 @@ class InversionResult:
             f"acceptance {np.mean(d['acceptance']):.2f}, min ESS {np.min(d['ess']):.0f}, "
             f"{'converged' if self.converged else 'NOT CONVERGED'}"
         )
+        if d.get("sampling") == "importance":
+            i = d["importance"]
+            lines.append(
+                f"importance sampling: {i['draws']} draws from a t fitted to the chain at step "
+                f"{i['step']}, Pareto k̂ {i['khat']:.2f}, ESS {i['ess']:.0f} (R̂ and τ: none)"
+            )
         lines += _convergence_lines(d.get("quantities", {}))
         if "realisation_spread" in d:
             lines.append(describe_spread(d["realisation_spread"], d.get("realisations")))

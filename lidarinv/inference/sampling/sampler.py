@@ -15,6 +15,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .ensemble import BatchedSampler, sample_in_chunks
+from .importance import ImportanceRun, ImportanceSettings, importance_sample
 from .moves import MOVES
 from .moves.chain_t import fit_moves, record_fit, refit_on_resume, worth_refitting
 from .start import (
@@ -118,6 +119,10 @@ class SamplerSettings:
         latest τ and at most ``max_steps``, is expected to last at least f /
         ``fit_fraction`` steps: an easy shot stops fitting early, a slow one refits until
         its t spans the posterior's tails.
+    importance : ImportanceSettings
+        ``"ess-rhat"`` rule: at these steps the chain's second half so far is tried as an
+        importance proposal (:mod:`.importance`); the run stops where the weighted draws
+        pass, and goes on where they do not.
     """
 
     n_walkers: int = 128
@@ -142,6 +147,7 @@ class SamplerSettings:
     moves: tuple = (("de", 0.2), ("ensemble-t", 0.5), ("chain-t", 0.3))
     fit_steps: tuple = (100, 200, 400, 800, 1600, 3200)
     fit_fraction: float = 0.25
+    importance: ImportanceSettings = field(default_factory=ImportanceSettings)
 
 
 @dataclass
@@ -162,6 +168,26 @@ class SamplerRun:
     seconds: dict = field(default_factory=dict)  # "start" (MAP search, ball), "sampling"
     # monitored quantity → {"ess_bulk", "ess_tail", "rhat", "tau"} after burn-in
     quantities: dict = field(default_factory=dict)
+    # the importance draws that ended the run, if any: the result's draws then
+    importance: ImportanceRun | None = None
+    importance_tries: list = field(default_factory=list)  # (step, k̂, ESS) of each try
+
+    def draws(self):
+        """The posterior's draws: the importance draws where they ended the run, else the
+        chain after burn-in, thinned; (u (n, ndim), log-probability (n,), blobs (n, k))."""
+        if self.importance is not None:
+            return self.importance.u, self.importance.log_prob, self.importance.blobs
+        kept = slice(self.burn, None, self.thin)
+        return tuple(
+            a[kept].reshape(-1, *a.shape[2:]) for a in (self.chain, self.log_prob, self.blobs)
+        )
+
+    def coordinate_ess(self) -> np.ndarray:
+        """Effective sample size of each sampled coordinate's mean."""
+        if self.importance is not None:
+            return self.importance.coordinate_ess
+        kept = self.chain.shape[0] - self.burn
+        return kept * self.chain.shape[1] / np.where(np.isfinite(self.tau), self.tau, np.inf)
 
 
 def _check_coordinates(backend, coordinates, resume):
@@ -379,6 +405,8 @@ def run_sampler(
     fits = fits if adaptive else []
     last_fit = refit_on_resume(sampler, adaptive, backend) if resume else 0
     multiple = _run_length_in_taus(s)
+    importance, history_of_tries = None, []
+    tries, importance_rng = _importance_steps(sampler.iteration, s), rng.spawn(1)[0]
     for _ in sample_in_chunks(sampler, state, max(s.max_steps - sampler.iteration, 0)):
         if fits and sampler.iteration == fits[0]:
             fits.pop(0)
@@ -388,6 +416,14 @@ def run_sampler(
             if wanted and fit_moves(sampler, adaptive):
                 last_fit = sampler.iteration  # the proposal is fixed until the next fit
                 record_fit(backend, last_fit)
+        if tries and sampler.iteration == tries[0]:
+            tries.pop(0)
+            tried = _try_importance(sampler, log_posterior, monitor, s, importance_rng)
+            if tried is not None:
+                history_of_tries.append((tried.step, tried.khat, tried.ess))
+                if tried.passed:
+                    importance, converged = tried, True
+                    break
         if sampler.iteration < min(next_check, s.max_steps):
             continue
         bar.update(sampler.iteration - bar.n)
@@ -412,15 +448,18 @@ def run_sampler(
         _show_target(bar, next_check, discard, tau, s.max_steps, multiple)
     if converged:  # the bar ends full, not at a fraction of the step cap
         bar.total = sampler.iteration
-        bar.set_postfix_str(f"converged, τ {np.max(tau):.0f}", refresh=False)
+        done = f"τ {np.max(tau):.0f}"
+        done = done if importance is None else f"importance draws, k̂ {importance.khat:.2f}"
+        bar.set_postfix_str(f"converged, {done}", refresh=False)
         bar.update(sampler.iteration - bar.n)
     bar.close()
     seconds["sampling"] = time.perf_counter() - clock
-    if s.stop_rule == "ess-rhat" and converged:
-        burn = discard  # the burn-in of the check that passed: what it judged is reported
-    else:
-        burn = burn_in(sampler.iteration, tau, s.burn_taus, floor)
-    if s.stop_rule == "ess-rhat":
+    if importance is not None:  # the weighted draws stand for the posterior, not the chain
+        burn, thin, quantities = sampler.iteration, 1, importance.quantities
+        coordinate_tau = np.full(ndim, np.nan)
+    elif s.stop_rule == "ess-rhat":
+        # a passing check's burn-in: what it judged is reported
+        burn = discard if converged else burn_in(sampler.iteration, tau, s.burn_taus, floor)
         # per coordinate, from ArviZ's bulk ESS as for the monitored quantities
         by_coordinate = coordinates_monitor(range(ndim))
         coordinates = _diagnostics(sampler, burn, tau, s, by_coordinate, bulk_only=True)
@@ -432,6 +471,7 @@ def run_sampler(
         # 2/5 τ apart at the default resolution: 50 draws a walker at 20 τ
         thin = max(1, int(2 * tau_max / s.tau_resolution)) if np.isfinite(tau_max) else 1
     else:
+        burn = burn_in(sampler.iteration, tau, s.burn_taus, floor)
         coordinate_tau = tau
         quantities = _diagnostics(sampler, burn, tau, s, monitor)
         tau_max = float(np.max(tau)) if np.all(np.isfinite(tau)) else sampler.iteration / 10
@@ -455,7 +495,26 @@ def run_sampler(
         start_modes=len(modes),
         seconds=seconds,
         quantities=quantities,
+        importance=importance,
+        importance_tries=history_of_tries,
     )
+
+
+def _importance_steps(iteration, s: SamplerSettings) -> list:
+    """The steps after ``iteration`` at which the chain is tried as an importance proposal
+    (none under the ``"tau"`` rule or with no draws asked)."""
+    if s.stop_rule != "ess-rhat" or s.importance.draws == 0:
+        return []
+    return sorted(step for step in s.importance.steps if iteration < step < s.max_steps)
+
+
+def _try_importance(sampler, log_posterior, monitor, s: SamplerSettings, rng) -> ImportanceRun:
+    """:func:`.importance.importance_sample` with a t fitted to the chain's second half."""
+    half = sampler.get_chain(discard=sampler.iteration // 2)
+    return importance_sample(
+        log_posterior, half.reshape(-1, half.shape[-1]), monitor, _rule(s), s.importance, rng,
+        sampler.iteration,
+    )  # fmt: skip
 
 
 def _rule(s: SamplerSettings) -> StopRule:

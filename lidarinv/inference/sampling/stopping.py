@@ -151,6 +151,32 @@ class StopRule:
             for failed in self._bulk_shortfalls(name, d, kept_steps)
         ]
 
+    def importance_shortfalls(self, diagnostics: dict) -> list:
+        """What keeps weighted independent draws (:mod:`.importance`) from standing for
+        the posterior, quantity by quantity: the bulk and tail ESS and the quantiles'
+        Monte Carlo error, as of a chain (R̂ and τ have no meaning there).
+
+        Parameters
+        ----------
+        diagnostics : dict of name → dict
+            :func:`.importance.importance_sample`'s quantities.
+
+        Returns
+        -------
+        list of str
+        """
+        out = []
+        for name, d in diagnostics.items():
+            if d["tau"] == 0:
+                continue
+            for kind in ("bulk", "tail"):
+                if not d[f"ess_{kind}"] >= self.ess_min:
+                    out.append(f"{name} {kind} ESS {d[f'ess_{kind}']:.0f} < {self.ess_min:g}")
+            mcse = d["quantile_mcse"]
+            if self.quantile_mcse_max is not None and not mcse <= self.quantile_mcse_max:
+                out.append(f"{name} quantile MCSE {mcse:.3f} sd > {self.quantile_mcse_max:g} sd")
+        return out
+
     def _bulk_shortfalls(self, name, d, kept_steps) -> list:
         out = []
         if not d["ess_bulk"] >= self.ess_min:
