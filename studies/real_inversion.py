@@ -170,6 +170,9 @@ def invert_one(job):
         record["recentring"] = result.diagnostics["recentring"]
     if "realisations" in result.diagnostics:  # asked, simulated, the first ones' spread
         record["realisations"] = result.diagnostics["realisations"]
+    # the chain's draws, or importance draws from a t fitted to its early steps
+    record["sampling"] = result.diagnostics.get("sampling", "chain")
+    record["importance_tries"] = result.diagnostics.get("importance_tries", [])
     if reference is not None:
         record["reference"] = reference_agreement(result, reference)
     canopy = result.footprint_canopy()
@@ -269,6 +272,8 @@ def statistics(records, instrument, per_shot=True) -> dict:
                 if "realisations" in r
             )
         ),
+        # the shots whose importance draws ended the run (not the chain's rule)
+        "importance_sampled": int(sum(r.get("sampling") == "importance" for r in done)),
         "median_realisation_spread": _percentile_of(done, "realisation_spread", 50),
         "p90_realisation_spread": _percentile_of(done, "realisation_spread", 90),
         "p90_residual_scale": _percentile_of(done, "residual_scale", 90),

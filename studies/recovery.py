@@ -219,6 +219,7 @@ def one_shot(task):
     row["start_modes"] = int(result.diagnostics["start_modes"])
     if "realisations" in result.diagnostics:  # asked, simulated, the first ones' spread
         row["realisations"] = result.diagnostics["realisations"]
+    row["sampling"] = result.diagnostics.get("sampling", "chain")  # or importance draws
     row["log_prob"] = {"best_in_chain": result.diagnostics["map_log_prob"]}
     row["log_prob"]["truth"] = truth_log_prob(obs, settings)
     summary = result.summary()
@@ -369,6 +370,8 @@ def summarise(rows, by_kind=True, supports=None):
         float(np.mean(gap[known] > 5.0)) if known.any() else None
     )
     out["converged_fraction"] = float(np.mean([r["converged"] for r in good]))
+    # the shots whose importance draws ended the run
+    out["importance_fraction"] = float(np.mean([r.get("sampling") == "importance" for r in good]))
     out["multi_mode_start_fraction"] = float(np.mean([r["start_modes"] > 1 for r in good]))
     out["median_seconds_per_shot"] = float(np.median([r["seconds"] for r in good]))
     kinds = list(dict.fromkeys(r["kind"] for r in rows if "kind" in r))

@@ -327,7 +327,7 @@ def collect_result(problem: InversionProblem, run: SamplerRun, rng) -> Inversion
             "burn": run.burn,
             "thin": run.thin,
             "converged": run.converged,
-            "map_log_prob": float(np.max(run.log_prob)),
+            "map_log_prob": float(max(np.max(run.log_prob), np.max(log_prob))),
             "start_modes": int(run.start_modes),
             "seconds": dict(run.seconds),
             "tau_history": [[int(i), t] for i, t in run.tau_history],

@@ -107,13 +107,17 @@ def fit_proposal(points, dof, scale):
 
 
 def weighted_ess(values, weights) -> float:
-    """Effective sample size of the self-normalised estimate of E[``values``]: the
-    posterior variance over the estimate's, Σ w (h − μ)² / Σ w² (h − μ)² (Owen 2013,
-    §9.3); NaN where ``values`` do not vary."""
+    """Effective sample size of the self-normalised estimate of E[``values``] (weights
+    summing to 1): the posterior variance over the estimate's, Σ w (h − μ)² / Σ w² (h − μ)²
+    (Owen 2013, §9.3), at most the weights' own 1 / Σ w² (the variance is itself
+    estimated from the weights, and is no better than they are); NaN where ``values`` do
+    not vary."""
     mean = np.sum(weights * values)
     spread = (values - mean) ** 2
     error = np.sum(weights**2 * spread)
-    return float(np.sum(weights * spread) / error) if error > 0 else np.nan
+    if not error > 0:
+        return np.nan
+    return float(min(np.sum(weights * spread) / error, 1.0 / np.sum(weights**2)))
 
 
 def weighted_quantiles(values, weights, probabilities) -> np.ndarray:
@@ -121,8 +125,13 @@ def weighted_quantiles(values, weights, probabilities) -> np.ndarray:
     return np.quantile(values, probabilities, weights=weights, method="inverted_cdf")
 
 
-def _quantity(values, weights) -> dict:
-    """Bulk and tail ESS and the quantiles' Monte Carlo error of one weighted quantity."""
+def weighted_diagnostics(values, weights) -> dict:
+    """:data:`.stopping.DIAGNOSTICS` of one weighted quantity (weights summing to 1): the
+    bulk ESS (of its mean), the tail ESS (the least of its 5 % and 95 % quantiles'
+    indicators', as ArviZ's tail ESS) and the 5/50/95 % quantiles' largest Monte Carlo
+    error in posterior sd (half the spread of the quantiles at q ± the standard error of
+    the CDF there, as ArviZ's ``mcse(method="quantile")``); R̂ and τ NaN (τ 0 where the
+    quantity does not vary, as :func:`.stopping.quantity_diagnostics`)."""
     out = dict.fromkeys(DIAGNOSTICS, np.nan)
     if not np.all(np.isfinite(values)):
         return out
@@ -197,7 +206,7 @@ def importance_sample(log_posterior, points, monitor, rule, settings, rng, step)
     ess = float(1.0 / np.sum(weights**2))
     held = weights > 0  # draws outside the support weigh nothing (their blobs are NaN)
     draws = monitor(u[held, None, :], blobs[held, None, :])
-    quantities = {name: _quantity(v[:, 0], weights[held]) for name, v in draws.items()}
+    quantities = {name: weighted_diagnostics(v[:, 0], weights[held]) for name, v in draws.items()}
     coordinate_ess = np.array([weighted_ess(u[held, i], weights[held]) for i in range(u.shape[1])])
     shortfalls = [] if float(khat) <= settings.khat_max else [
         f"importance weights' Pareto k̂ {float(khat):.2f} > {settings.khat_max:g}"

@@ -1,5 +1,7 @@
 """The sampler harness on a posterior known in closed form (linear-Gaussian toy)."""
 
+from dataclasses import replace
+
 import emcee
 import numpy as np
 import pytest
@@ -14,6 +16,7 @@ from lidarinv.inference.model.space import Parameter, ParameterSpace
 from lidarinv.inference.model.stand import TOP_SDS
 from lidarinv.inference.sampling import SamplerSettings, burn_in, find_map, run_sampler
 from lidarinv.inference.sampling.ensemble import BatchedSampler, sample_in_chunks
+from lidarinv.inference.sampling.importance import ImportanceSettings
 from lidarinv.inference.sampling.moves import MOVES
 from lidarinv.inference.sampling.sampler import may_converge
 
@@ -43,21 +46,28 @@ class LinearGaussianToy:
         return np.column_stack([log_post, x.sum(axis=1)])
 
 
-@pytest.fixture(scope="module")
-def toy_run():
+@pytest.fixture(scope="module", params=["importance", "chain"])
+def toy_run(request):
+    """The toy sampled to convergence: by default (the Gaussian passes the importance
+    draws at their first try), and by the chain alone."""
     rng = np.random.default_rng(42)
     space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(3))
     toy = LinearGaussianToy(space, rng)
-    settings = SamplerSettings(n_walkers=16, max_steps=6000, check_every=250)
+    draws = ImportanceSettings().draws if request.param == "importance" else 0
+    settings = SamplerSettings(
+        n_walkers=16, max_steps=6000, check_every=250, importance=ImportanceSettings(draws)
+    )
     return toy, run_sampler(toy, space, rng, settings)
 
 
 def test_toy_posterior_matches_closed_form(toy_run):
     toy, run = toy_run
     assert run.converged, run.flags
-    u = run.chain[run.burn :].reshape(-1, 3)
+    if run.importance is not None:  # it ended at the first try
+        assert run.importance.step == ImportanceSettings().steps[0] == run.chain.shape[0]
+    u, _, _ = run.draws()
     x, _ = toy.space.from_unbounded(u)
-    n_eff = u.shape[0] / np.max(run.tau)
+    n_eff = np.min(run.coordinate_ess())
     mcse = np.sqrt(np.diag(toy.cov) / n_eff)
     np.testing.assert_array_less(np.abs(x.mean(axis=0) - toy.mean), 5 * mcse)
     np.testing.assert_allclose(np.cov(x.T), toy.cov, rtol=0.25, atol=0.05 * np.max(toy.cov))
@@ -406,14 +416,15 @@ def test_walkers_start_in_every_basin_in_proportion_to_its_mass():
     rng = np.random.default_rng(4)
     space = ParameterSpace(Parameter(f"t{i}", "1", Uniform(-20.0, 20.0)) for i in range(2))
     toy = TwoModeToy(space)
-    settings = SamplerSettings(n_walkers=40, max_steps=600, polish=16, mode_window=5.0)
+    settings = SamplerSettings(
+        n_walkers=40, max_steps=600, polish=16, mode_window=5.0,
+        importance=ImportanceSettings(draws=0),  # the walkers' own draws are judged
+    )  # fmt: skip
     run = run_sampler(toy, space, rng, settings)
     assert run.start_modes == 2
     first = run.chain[run.burn :, :, 0]  # the basins lie either side of u = 0
     assert abs(np.mean(first < 0) - 0.7) < 0.1  # one basin alone would give 0 or 1
-    single = run_sampler(
-        toy, space, rng, SamplerSettings(n_walkers=40, max_steps=600, mode_window=0.0)
-    )
+    single = run_sampler(toy, space, rng, replace(settings, polish=3, mode_window=0.0))
     assert single.start_modes == 1
     assert np.mean(single.chain[single.burn :, :, 0] < 0) in (0.0, 1.0)
 

@@ -6,6 +6,7 @@ import pytest
 from lidarinv.inference.model.priors import Uniform
 from lidarinv.inference.model.space import Parameter, ParameterSpace
 from lidarinv.inference.sampling import SamplerSettings, run_sampler
+from lidarinv.inference.sampling.importance import ImportanceSettings
 from lidarinv.inference.sampling.stopping import (
     StopRule,
     quantile_mcse,
@@ -45,7 +46,10 @@ SLOW_HOPS = (("stretch", 0.9), ("de", 0.1))
 
 
 def _run(log_pdf, centres, seed, max_steps=6000):
-    settings = SamplerSettings(n_walkers=32, max_steps=max_steps, check_every=25, moves=SLOW_HOPS)
+    settings = SamplerSettings(
+        n_walkers=32, max_steps=max_steps, check_every=25, moves=SLOW_HOPS,
+        importance=ImportanceSettings(draws=0),  # the chain's rule alone
+    )  # fmt: skip
     start = SPACE.to_unbounded(np.atleast_2d(centres))
     rng = np.random.default_rng(seed)
     return run_sampler(_log_density(log_pdf), SPACE, rng, settings, start=start)
