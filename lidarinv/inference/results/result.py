@@ -214,8 +214,10 @@ class InversionResult:
             numbers = "".join(f"{row[k]:>11.4g}" for k in ("median", "p05", "p16", "p84", "p95"))
             lines.append(f"{name:<20}{row['units']:>9}{numbers}")
         d = self.diagnostics
+        tau = np.asarray(d["tau"], float)  # none where importance draws ended the run
+        tau = "" if np.all(np.isnan(tau)) else f", max τ {np.max(tau):.0f}"
         lines.append(
-            f"steps {d['n_steps']} × {d['n_walkers']} walkers, max τ {np.max(d['tau']):.0f}, "
+            f"steps {d['n_steps']} × {d['n_walkers']} walkers{tau}, "
             f"acceptance {np.mean(d['acceptance']):.2f}, min ESS {np.min(d['ess']):.0f}, "
             f"{'converged' if self.converged else 'NOT CONVERGED'}"
         )

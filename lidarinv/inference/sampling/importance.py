@@ -9,9 +9,10 @@ at a fraction of the steps the chain needs to pass the ``"ess-rhat"`` rule
 - the weights are Pareto-smoothed and their tail's shape k̂ must be at most
   ``khat_max`` (Vehtari et al. 2024: above 0.7 the estimate is unreliable whatever the
   number of draws; 0.5 is asked here, so the check is not marginal);
-- every monitored quantity's bulk ESS (of its mean) and tail ESS (of its 5 % and 95 %
-  quantiles' indicators), from the smoothed weights, must reach the rule's ``ess_min``,
-  and its quantiles' Monte Carlo error the rule's bound where one is set.
+- every monitored quantity's bulk ESS (of its rank-normalised draws) and tail ESS (of
+  its 5 % and 95 % quantiles' indicators), from the smoothed weights, must reach the
+  rule's ``ess_min``, and its quantiles' Monte Carlo error the rule's bound where one is
+  set; where only that falls short, more draws are made from the same t.
 
 Where they pass, the weighted draws are resampled (systematic resampling) into draws of
 equal weight, which the result then uses as it would the chain's; where they fail the
@@ -31,7 +32,7 @@ filtering. *ISPA 2005*, 64–69 (systematic resampling).
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import special, stats
 
 from .stopping import DIAGNOSTICS, REPORTED_QUANTILES
 
@@ -49,7 +50,11 @@ class ImportanceSettings:
     Parameters
     ----------
     draws : int
-        Draws from the fitted t at each try (0: never try).
+        Draws from the fitted t at each try (0: never try), and the draws a result keeps.
+    max_draws : int
+        Where k̂ passes but a quantity's ESS falls short, batches of ``draws`` more are
+        made from the same t, up to this many in all (an ESS grows with the draws; a
+        batch costs less than the steps the chain would need).
     steps : tuple of int
         Steps of the chain at which a try is made, on its second half so far.
     khat_max : float
@@ -65,14 +70,18 @@ class ImportanceSettings:
     """
 
     draws: int = 4096
+    max_draws: int = 16384
     steps: tuple = (200, 400, 800, 1600, 3200, 6400, 12800)
     khat_max: float = 0.5
     dof: float = 5.0
     scale: float = 1.1
 
     def __post_init__(self):
-        if self.draws < 0:
-            raise ValueError(f"importance draws must be ≥ 0, not {self.draws}")
+        if self.draws < 0 or self.max_draws < self.draws:
+            raise ValueError(
+                f"importance draws must be ≥ 0 and at most max_draws, not {self.draws} "
+                f"and {self.max_draws}"
+            )
         if not (self.dof > 2 and self.scale > 0 and self.khat_max > 0):
             raise ValueError("importance dof must exceed 2, and its scale and khat_max be > 0")
 
@@ -120,6 +129,20 @@ def weighted_ess(values, weights) -> float:
     return float(min(np.sum(weights * spread) / error, 1.0 / np.sum(weights**2)))
 
 
+def normal_scores(values, weights) -> np.ndarray:
+    """Weighted draws rank-normalised: Φ⁻¹ of each draw's mid-point on the weighted CDF
+    (ties share theirs). The bulk ESS of a chain is that of its rank-normalised draws
+    (Vehtari et al. 2021); so is that of weighted draws here, which the reported quantiles
+    need, and which a long tail does not drag down as it does the mean's."""
+    order = np.argsort(values, kind="stable")
+    ranked = np.cumsum(weights[order]) - 0.5 * weights[order]
+    _, first, counts = np.unique(values[order], return_index=True, return_counts=True)
+    shared = np.add.reduceat(ranked, first) / counts  # ties: the mean of their mid-points
+    mid = np.empty_like(ranked)
+    mid[order] = np.repeat(shared, counts)
+    return special.ndtri(np.clip(mid, 1e-12, 1 - 1e-12))
+
+
 def weighted_quantiles(values, weights, probabilities) -> np.ndarray:
     """Quantiles of weighted draws (the inverse of their weighted CDF)."""
     return np.quantile(values, probabilities, weights=weights, method="inverted_cdf")
@@ -127,8 +150,9 @@ def weighted_quantiles(values, weights, probabilities) -> np.ndarray:
 
 def weighted_diagnostics(values, weights) -> dict:
     """:data:`.stopping.DIAGNOSTICS` of one weighted quantity (weights summing to 1): the
-    bulk ESS (of its mean), the tail ESS (the least of its 5 % and 95 % quantiles'
-    indicators', as ArviZ's tail ESS) and the 5/50/95 % quantiles' largest Monte Carlo
+    bulk ESS (of its rank-normalised draws: :func:`normal_scores`), the tail ESS (the
+    least of its 5 % and 95 % quantiles' indicators', as ArviZ's tail ESS) and the 5/50/95 %
+    quantiles' largest Monte Carlo
     error in posterior sd (half the spread of the quantiles at q ± the standard error of
     the CDF there, as ArviZ's ``mcse(method="quantile")``); R̂ and τ NaN (τ 0 where the
     quantity does not vary, as :func:`.stopping.quantity_diagnostics`)."""
@@ -140,7 +164,7 @@ def weighted_diagnostics(values, weights) -> dict:
     if not sd > 0:
         return {**out, "tau": 0.0}  # a quantity that does not vary (as the chain's rule)
     tails = weighted_quantiles(values, weights, TAIL_QUANTILES)
-    out["ess_bulk"] = weighted_ess(values, weights)
+    out["ess_bulk"] = weighted_ess(normal_scores(values, weights), weights)
     out["ess_tail"] = min(weighted_ess((values <= t).astype(float), weights) for t in tails)
     errors = []
     for q in np.asarray(REPORTED_QUANTILES) / 100:
@@ -186,35 +210,52 @@ def importance_sample(log_posterior, points, monitor, rule, settings, rng, step)
     ImportanceRun or None
         None where the t cannot be fitted (a singular covariance).
     """
-    import arviz as az  # imported on first use: it is slow to import
-
     proposal = fit_proposal(points, settings.dof, settings.scale)
     if proposal is None:
         return None
-    u = np.atleast_2d(proposal.rvs(settings.draws, random_state=rng))
-    out = np.vstack([log_posterior(u[i : i + CHUNK_ROWS]) for i in range(0, len(u), CHUNK_ROWS)])
-    log_prob, blobs = out[:, 0], out[:, 1:]
+    u = np.empty((0, points.shape[1]))
+    evaluated = log_q = None
+    while True:  # more draws from the same t while only their number falls short
+        batch = np.atleast_2d(proposal.rvs(settings.draws, random_state=rng))
+        rows = [log_posterior(batch[i : i + CHUNK_ROWS]) for i in range(0, len(batch), CHUNK_ROWS)]
+        u = np.vstack([u, batch])
+        evaluated = np.vstack([evaluated, *rows] if evaluated is not None else rows)
+        log_q = np.concatenate([log_q, proposal.logpdf(batch)] if log_q is not None else
+                               [proposal.logpdf(batch)])  # fmt: skip
+        judged = _judge(u, evaluated, log_q, monitor, rule, settings)
+        weights, khat, shortfalls = judged[0], judged[1], judged[-1]
+        if not shortfalls or khat > settings.khat_max or len(u) >= settings.max_draws:
+            break
+    keep = systematic_resample(weights, rng)[
+        np.sort(rng.choice(len(u), settings.draws, replace=False))
+    ]  # as many draws as one batch, whatever the batches made
+    return ImportanceRun(
+        u[keep], evaluated[keep, 0], evaluated[keep, 1:], khat,
+        float(1.0 / np.sum(weights**2)) if weights.any() else 0.0, *judged[2:4], step,
+        not shortfalls, shortfalls,
+    )  # fmt: skip
+
+
+def _judge(u, evaluated, log_q, monitor, rule, settings):
+    """The smoothed weights of draws ``u`` (log-posterior and blobs ``evaluated``, proposal
+    log-density ``log_q``), their k̂, each coordinate's ESS, the monitored quantities'
+    diagnostics, and what falls short."""
+    import arviz as az  # imported on first use: it is slow to import
+
+    log_prob, blobs = evaluated[:, 0], evaluated[:, 1:]
     finite = np.isfinite(log_prob)
-    log_weights = np.where(finite, log_prob - proposal.logpdf(u), -np.inf)
-    if finite.sum() < 10:
-        smoothed, khat = np.full(u.shape[0], -np.inf), np.inf
-    else:
-        smoothed = np.full(u.shape[0], -np.inf)
-        smoothed[finite], khat = az.psislw(log_weights[finite], reff=1.0)
-    weights = np.exp(smoothed - np.max(smoothed))
-    weights /= weights.sum()
-    ess = float(1.0 / np.sum(weights**2))
+    weights, khat = np.zeros(len(u)), np.inf
+    if finite.sum() >= 10:  # PSIS fits its tail to the largest fifth of at least these
+        smoothed, khat = az.psislw(log_prob[finite] - log_q[finite], reff=1.0)
+        weights[finite] = np.exp(smoothed - np.max(smoothed))
+        weights /= weights.sum()
+        khat = float(khat)
+    if khat > settings.khat_max:
+        return weights, khat, np.full(u.shape[1], np.nan), {}, [
+            f"importance weights' Pareto k̂ {khat:.2f} > {settings.khat_max:g}"
+        ]  # fmt: skip
     held = weights > 0  # draws outside the support weigh nothing (their blobs are NaN)
     draws = monitor(u[held, None, :], blobs[held, None, :])
     quantities = {name: weighted_diagnostics(v[:, 0], weights[held]) for name, v in draws.items()}
     coordinate_ess = np.array([weighted_ess(u[held, i], weights[held]) for i in range(u.shape[1])])
-    shortfalls = [] if float(khat) <= settings.khat_max else [
-        f"importance weights' Pareto k̂ {float(khat):.2f} > {settings.khat_max:g}"
-    ]  # fmt: skip
-    shortfalls += rule.importance_shortfalls(quantities)
-    keep = systematic_resample(weights, rng)
-    return ImportanceRun(
-        u=u[keep], log_prob=log_prob[keep], blobs=blobs[keep], khat=float(khat), ess=ess,
-        coordinate_ess=coordinate_ess, quantities=quantities, step=step,
-        passed=not shortfalls, shortfalls=shortfalls,
-    )  # fmt: skip
+    return weights, khat, coordinate_ess, quantities, rule.importance_shortfalls(quantities)
