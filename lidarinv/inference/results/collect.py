@@ -218,7 +218,9 @@ def _importance_diagnostics(run: SamplerRun) -> dict:
     if run.importance is not None:
         i = run.importance
         out["sampling"] = "importance"
-        out["importance"] = {"khat": i.khat, "ess": i.ess, "draws": len(i.u), "step": i.step}
+        out["importance"] = {
+            "khat": i.khat, "ess": i.ess, "draws": len(i.u), "made": i.made, "step": i.step
+        }  # fmt: skip
     return out
 
 

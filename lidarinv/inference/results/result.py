@@ -224,8 +224,9 @@ class InversionResult:
         if d.get("sampling") == "importance":
             i = d["importance"]
             lines.append(
-                f"importance sampling: {i['draws']} draws from a t fitted to the chain at step "
-                f"{i['step']}, Pareto k̂ {i['khat']:.2f}, ESS {i['ess']:.0f} (R̂ and τ: none)"
+                f"importance sampling: {i.get('made', i['draws'])} draws from a t fitted to the "
+                f"chain at step {i['step']}, Pareto k̂ {i['khat']:.2f}, ESS {i['ess']:.0f}, "
+                f"{i['draws']} kept (R̂ and τ: none)"
             )
         lines += _convergence_lines(d.get("quantities", {}))
         if "realisation_spread" in d:

@@ -100,6 +100,7 @@ class ImportanceRun:
     step: int  # the chain's step the proposal was fitted at
     passed: bool
     shortfalls: list
+    made: int  # draws made from the t (batches of ``draws``)
 
 
 def fit_proposal(points, dof, scale):
@@ -232,7 +233,7 @@ def importance_sample(log_posterior, points, monitor, rule, settings, rng, step)
     return ImportanceRun(
         u[keep], evaluated[keep, 0], evaluated[keep, 1:], khat,
         float(1.0 / np.sum(weights**2)) if weights.any() else 0.0, *judged[2:4], step,
-        not shortfalls, shortfalls,
+        not shortfalls, shortfalls, len(u),
     )  # fmt: skip
 
 

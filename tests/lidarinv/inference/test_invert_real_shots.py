@@ -38,6 +38,13 @@ def test_a_single_peak_real_shot_puts_the_ground_at_the_peak_under_a_low_canopy(
     assert set(learning) == set(result.diagnostics["sampled"])
     assert "ground_elevation" not in result.prior_dominated
     assert learning["ground_elevation"]["contraction"] > 0.3
+    # a one-layer posterior close to a t: weighted draws end the run at the first try,
+    # and the result says so, with the weights' k̂ and every quantity's ESS from them
+    d = result.diagnostics
+    assert d["sampling"] == "importance" and d["n_steps"] == d["importance"]["step"] == 200
+    assert d["importance"]["khat"] <= 0.5 and result.samples.shape[0] == 4096
+    assert all(min(q["ess_bulk"], q["ess_tail"]) >= 400 for q in d["quantities"].values())
+    assert "importance sampling" in result.summary_table() and "max τ" not in result.summary_table()
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")

@@ -69,6 +69,20 @@ def test_quantile_error_of_equal_weights_is_arviz_quantile_mcse():
     assert weighted_diagnostics(np.ones(10), np.full(10, 0.1))["tau"] == 0  # does not vary
 
 
+def test_more_draws_are_made_where_only_their_number_falls_short():
+    """256 draws cannot reach ESS 400: batches of 256 more are made from the same t until
+    they do, within ``max_draws``; the result keeps 256 of them, resampled."""
+    rng = np.random.default_rng(6)
+    points = rng.multivariate_normal(MEAN, COV, size=3000)
+    few = ImportanceSettings(draws=256, max_draws=256)
+    capped = importance_sample(gaussian_posterior, points, MONITOR, StopRule(), few, rng, 200)
+    assert not capped.passed and all("ESS" in s for s in capped.shortfalls)
+    more = ImportanceSettings(draws=256, max_draws=4096)
+    run = importance_sample(gaussian_posterior, points, MONITOR, StopRule(), more, rng, 200)
+    assert run.passed and run.ess >= StopRule().ess_min and len(run.u) == 256
+    assert 256 < run.made < 4096 and run.made % 256 == 0  # it stopped once the ESS sufficed
+
+
 def test_a_proposal_too_narrow_for_heavy_tails_fails_on_khat():
     rng = np.random.default_rng(4)
     points = 0.1 * rng.standard_normal((3000, 2))  # walkers that have not spread out yet
@@ -102,5 +116,7 @@ def test_systematic_resampling_keeps_each_draw_within_one_of_its_share(raw, seed
 def test_settings_refuse_what_cannot_work():
     with pytest.raises(ValueError, match="draws"):
         ImportanceSettings(draws=-1)
+    with pytest.raises(ValueError, match="max_draws"):
+        ImportanceSettings(draws=4096, max_draws=1024)
     with pytest.raises(ValueError, match="dof"):
         ImportanceSettings(dof=2.0)
