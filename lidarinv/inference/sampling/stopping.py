@@ -151,7 +151,7 @@ class StopRule:
             for failed in self._bulk_shortfalls(name, d, kept_steps)
         ]
 
-    def importance_shortfalls(self, diagnostics: dict) -> list:
+    def importance_shortfalls(self, diagnostics: dict, ess_min: float | None = None) -> list:
         """What keeps weighted independent draws (:mod:`.importance`) from standing for
         the posterior, quantity by quantity: the bulk and tail ESS and the quantiles'
         Monte Carlo error, as of a chain (R̂ and τ have no meaning there).
@@ -160,18 +160,20 @@ class StopRule:
         ----------
         diagnostics : dict of name → dict
             :func:`.importance.importance_sample`'s quantities.
+        ess_min : float, optional
+            Least bulk and tail ESS; default the rule's.
 
         Returns
         -------
         list of str
         """
-        out = []
+        out, ess_min = [], self.ess_min if ess_min is None else ess_min
         for name, d in diagnostics.items():
             if d["tau"] == 0:
                 continue
             for kind in ("bulk", "tail"):
-                if not d[f"ess_{kind}"] >= self.ess_min:
-                    out.append(f"{name} {kind} ESS {d[f'ess_{kind}']:.0f} < {self.ess_min:g}")
+                if not d[f"ess_{kind}"] >= ess_min:
+                    out.append(f"{name} {kind} ESS {d[f'ess_{kind}']:.0f} < {ess_min:g}")
             mcse = d["quantile_mcse"]
             if self.quantile_mcse_max is not None and not mcse <= self.quantile_mcse_max:
                 out.append(f"{name} quantile MCSE {mcse:.3f} sd > {self.quantile_mcse_max:g} sd")
