@@ -151,7 +151,9 @@ class StopRule:
             for failed in self._bulk_shortfalls(name, d, kept_steps)
         ]
 
-    def importance_shortfalls(self, diagnostics: dict, ess_min: float | None = None) -> list:
+    def importance_shortfalls(
+        self, diagnostics: dict, ess_min: float | None = None, mcse_max: float | None = None
+    ) -> list:
         """What keeps weighted independent draws (:mod:`.importance`) from standing for
         the posterior, quantity by quantity: the bulk and tail ESS and the quantiles'
         Monte Carlo error, as of a chain (R̂ and τ have no meaning there).
@@ -162,12 +164,15 @@ class StopRule:
             :func:`.importance.importance_sample`'s quantities.
         ess_min : float, optional
             Least bulk and tail ESS; default the rule's.
+        mcse_max : float, optional
+            Largest quantile MCSE (posterior sd); default the rule's ``quantile_mcse_max``.
 
         Returns
         -------
         list of str
         """
         out, ess_min = [], self.ess_min if ess_min is None else ess_min
+        mcse_max = self.quantile_mcse_max if mcse_max is None else mcse_max
         for name, d in diagnostics.items():
             if d["tau"] == 0:
                 continue
@@ -175,8 +180,8 @@ class StopRule:
                 if not d[f"ess_{kind}"] >= ess_min:
                     out.append(f"{name} {kind} ESS {d[f'ess_{kind}']:.0f} < {ess_min:g}")
             mcse = d["quantile_mcse"]
-            if self.quantile_mcse_max is not None and not mcse <= self.quantile_mcse_max:
-                out.append(f"{name} quantile MCSE {mcse:.3f} sd > {self.quantile_mcse_max:g} sd")
+            if mcse_max is not None and np.isfinite(mcse_max) and not mcse <= mcse_max:
+                out.append(f"{name} quantile MCSE {mcse:.3f} sd > {mcse_max:g} sd")
         return out
 
     def _bulk_shortfalls(self, name, d, kept_steps) -> list:
