@@ -168,13 +168,14 @@ def weighted_quantiles(values, weights, probabilities) -> np.ndarray:
 
 
 def weighted_diagnostics(values, weights) -> dict:
-    """:data:`.stopping.DIAGNOSTICS` of one weighted quantity (weights summing to 1): the
-    bulk ESS (of its rank-normalised draws: :func:`normal_scores`), the tail ESS (the
-    least of its 5 % and 95 % quantiles' indicators', as ArviZ's tail ESS) and the 5/50/95 %
-    quantiles' largest Monte Carlo
-    error in posterior sd (half the spread of the quantiles at q ± the standard error of
-    the CDF there, as ArviZ's ``mcse(method="quantile")``); R̂ and τ NaN (τ 0 where the
-    quantity does not vary, as :func:`.stopping.quantity_diagnostics`)."""
+    """:data:`.stopping.DIAGNOSTICS` of one weighted quantity (weights summing to 1).
+
+    The bulk ESS is that of its rank-normalised draws (:func:`normal_scores`); the tail
+    ESS, the least of its 5 % and 95 % quantiles' indicators' (as ArviZ's tail ESS); the
+    quantile error, the largest over the 5/50/95 % quantiles of half the spread between
+    the quantiles at q ± the standard error of the CDF there, in posterior sd (as ArviZ's
+    ``mcse(method="quantile")``). R̂ and τ are NaN (τ 0 where the quantity does not vary,
+    as :func:`.stopping.quantity_diagnostics` has it)."""
     out = dict.fromkeys(DIAGNOSTICS, np.nan)
     if not np.all(np.isfinite(values)):
         return out
@@ -244,7 +245,7 @@ def importance_sample(log_posterior, points, monitor, rule, settings, rng, step)
                                [proposal.logpdf(batch)])  # fmt: skip
         judged = _judge(u, evaluated, log_q, monitor, rule, settings)
         weights, khat, shortfalls = judged[0], judged[1], judged[-1]
-        if not shortfalls or khat > settings.khat_max or len(u) >= settings.max_draws:
+        if not shortfalls or not khat <= settings.khat_max or len(u) >= settings.max_draws:
             break
         if _least_ess(judged[3]) * settings.max_draws / len(u) < settings.ess_min:
             break  # ESS grows in proportion to the draws: even max_draws would fall short
@@ -279,7 +280,7 @@ def _judge(u, evaluated, log_q, monitor, rule, settings):
         weights[finite] = np.exp(smoothed - np.max(smoothed))
         weights /= weights.sum()
         khat = float(khat)
-    if khat > settings.khat_max:
+    if not khat <= settings.khat_max:  # NaN too
         return weights, khat, np.full(u.shape[1], np.nan), {}, [
             f"importance weights' Pareto k̂ {khat:.2f} > {settings.khat_max:g}"
         ]  # fmt: skip
