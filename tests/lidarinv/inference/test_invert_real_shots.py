@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from lidarinv.inference import InversionSettings, invert_shot
+from lidarinv.inference.sampling import ImportanceSettings
 from lidarinv.io import example_file, iter_observations
 from lidarinv.observe import processing_settings
 from lidarinv.observe.analyse import analyse
@@ -38,13 +39,24 @@ def test_a_single_peak_real_shot_puts_the_ground_at_the_peak_under_a_low_canopy(
     assert set(learning) == set(result.diagnostics["sampled"])
     assert "ground_elevation" not in result.prior_dominated
     assert learning["ground_elevation"]["contraction"] > 0.3
-    # a one-layer posterior close to a t: weighted draws end the run at the first try,
-    # and the result says so, with the weights' k̂ and every quantity's ESS from them
+    assert result.diagnostics["importance_tries"][0][0] == 200  # tried, and judged
+
+
+def test_importance_draws_that_pass_are_the_result_and_it_says_so():
+    """A one-layer posterior close to a t: under a lower ESS asked of them than the
+    default, the first try's weighted draws end the run, and the result is made of them,
+    with the weights' k̂ and every quantity's ESS from them, and no τ."""
+    single = [(obs, a) for obs, a in _analysed("gedi-l1b") if a.n_modes == 1]
+    obs, _ = min(single, key=lambda pair: pair[1].rh[98])
+    lenient = ImportanceSettings(ess_min=400.0, quantile_mcse_max=1.0)
+    settings = replace(SHORT, sampler=replace(SHORT.sampler, importance=lenient))
+    result = invert_shot(obs, settings, rng=np.random.default_rng(3))
     d = result.diagnostics
     assert d["sampling"] == "importance" and d["n_steps"] == d["importance"]["step"] == 200
     assert d["importance"]["khat"] <= 0.5 and result.samples.shape[0] == 4096
     assert all(min(q["ess_bulk"], q["ess_tail"]) >= 400 for q in d["quantities"].values())
-    assert "importance sampling" in result.summary_table() and "max τ" not in result.summary_table()
+    table = result.summary_table()
+    assert "importance sampling" in table and "max τ" not in table
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")
