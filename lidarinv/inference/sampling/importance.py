@@ -183,16 +183,15 @@ def weighted_diagnostics(values, weights) -> dict:
     sd = float(np.sqrt(np.sum(weights * (values - mean) ** 2)))
     if not sd > 0:
         return {**out, "tau": 0.0}  # a quantity that does not vary (as the chain's rule)
-    tails = weighted_quantiles(values, weights, TAIL_QUANTILES)
     out["ess_bulk"] = weighted_ess(normal_scores(values, weights), weights)
-    out["ess_tail"] = min(weighted_ess((values <= t).astype(float), weights) for t in tails)
-    errors = []
-    for q in np.asarray(REPORTED_QUANTILES) / 100:
-        at = weighted_quantiles(values, weights, [q])[0]
-        ess = weighted_ess((values <= at).astype(float), weights)
+    probabilities = np.asarray(REPORTED_QUANTILES) / 100
+    ess_at, errors = {}, []
+    for q, at in zip(probabilities, weighted_quantiles(values, weights, probabilities)):
+        ess = ess_at[q] = weighted_ess((values <= at).astype(float), weights)
         half = np.sqrt(q * (1 - q) / ess) if ess > 0 else np.inf  # the CDF's standard error
         low, high = weighted_quantiles(values, weights, np.clip([q - half, q + half], 0, 1))
         errors.append(0.5 * (high - low) / sd)
+    out["ess_tail"] = min(ess_at[q] for q in TAIL_QUANTILES)
     out["quantile_mcse"] = float(np.max(errors))
     return out
 
@@ -234,16 +233,14 @@ def importance_sample(log_posterior, points, monitor, rule, settings, rng, step)
     proposal = fit_proposal(points, settings.dof, settings.scale)
     if proposal is None:
         return None
-    u = np.empty((0, points.shape[1]))
-    evaluated = log_q = None
+    batches, rows, log_q = [], [], []
     while True:  # more draws from the same t while only their number falls short
         batch = np.atleast_2d(proposal.rvs(settings.draws, random_state=rng))
-        rows = [log_posterior(batch[i : i + CHUNK_ROWS]) for i in range(0, len(batch), CHUNK_ROWS)]
-        u = np.vstack([u, batch])
-        evaluated = np.vstack([evaluated, *rows] if evaluated is not None else rows)
-        log_q = np.concatenate([log_q, proposal.logpdf(batch)] if log_q is not None else
-                               [proposal.logpdf(batch)])  # fmt: skip
-        judged = _judge(u, evaluated, log_q, monitor, rule, settings)
+        batches.append(batch)
+        rows += [log_posterior(batch[i : i + CHUNK_ROWS]) for i in range(0, len(batch), CHUNK_ROWS)]
+        log_q.append(proposal.logpdf(batch))
+        u, evaluated = np.vstack(batches), np.vstack(rows)
+        judged = _judge(u, evaluated, np.concatenate(log_q), monitor, rule, settings)
         weights, khat, shortfalls = judged[0], judged[1], judged[-1]
         if not shortfalls or not khat <= settings.khat_max or len(u) >= settings.max_draws:
             break

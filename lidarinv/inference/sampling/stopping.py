@@ -122,11 +122,7 @@ class StopRule:
             if not np.isfinite(d["rhat"]) or d["rhat"] > self.rhat_max:
                 out.append(f"{name} R̂ {d['rhat']:.3f} > {self.rhat_max:g}")
             out.extend(self._bulk_shortfalls(name, d, kept_steps))
-            if not d["ess_tail"] >= self.ess_min:
-                out.append(f"{name} tail ESS {d['ess_tail']:.0f} < {self.ess_min:g}")
-            mcse = d.get("quantile_mcse", np.nan)
-            if self.quantile_mcse_max is not None and not mcse <= self.quantile_mcse_max:
-                out.append(f"{name} quantile MCSE {mcse:.3f} sd > {self.quantile_mcse_max:g} sd")
+            out.extend(_tail_shortfalls(name, d, self.ess_min, self.quantile_mcse_max))
         return out
 
     def bulk_shortfalls(self, diagnostics: dict, kept_steps: int) -> list:
@@ -176,12 +172,9 @@ class StopRule:
         for name, d in diagnostics.items():
             if d["tau"] == 0:
                 continue
-            for kind in ("bulk", "tail"):
-                if not d[f"ess_{kind}"] >= ess_min:
-                    out.append(f"{name} {kind} ESS {d[f'ess_{kind}']:.0f} < {ess_min:g}")
-            mcse = d["quantile_mcse"]
-            if mcse_max is not None and np.isfinite(mcse_max) and not mcse <= mcse_max:
-                out.append(f"{name} quantile MCSE {mcse:.3f} sd > {mcse_max:g} sd")
+            if not d["ess_bulk"] >= ess_min:
+                out.append(f"{name} bulk ESS {d['ess_bulk']:.0f} < {ess_min:g}")
+            out.extend(_tail_shortfalls(name, d, ess_min, mcse_max))
         return out
 
     def _bulk_shortfalls(self, name, d, kept_steps) -> list:
@@ -192,6 +185,18 @@ class StopRule:
         if not taus >= self.min_taus:
             out.append(f"{name} chain {taus:.1f} τ < {self.min_taus:g} τ (τ {d['tau']:.0f})")
         return out
+
+
+def _tail_shortfalls(name, d, ess_min, mcse_max) -> list:
+    """The tail ESS below ``ess_min``, and the quantiles' MCSE above ``mcse_max`` (None or
+    infinite: not asked), of one quantity's diagnostics ``d``."""
+    out = []
+    if not d["ess_tail"] >= ess_min:
+        out.append(f"{name} tail ESS {d['ess_tail']:.0f} < {ess_min:g}")
+    mcse = d.get("quantile_mcse", np.nan)
+    if mcse_max is not None and np.isfinite(mcse_max) and not mcse <= mcse_max:
+        out.append(f"{name} quantile MCSE {mcse:.3f} sd > {mcse_max:g} sd")
+    return out
 
 
 def quantity_diagnostics(
