@@ -54,9 +54,10 @@ class ImportanceSettings:
         Draws from the fitted t at each try (0: never try), and the draws a result keeps.
     max_draws : int
         Where k̂ passes but a quantity's ESS falls short, batches of ``draws`` more are
-        made from the same t, up to this many in all (an ESS grows with the draws; a
-        batch costs less than the steps the chain would need), unless the ESS so far,
-        grown in proportion, would fall short even then.
+        made from the same t, up to this many in all and no more than the chain's own
+        evaluations so far (walkers × steps: a try that fails at most doubles what the
+        run has cost), unless the ESS so far, grown in proportion, would fall short even
+        then. An ESS grows with the draws, and a draw costs what a walker's step does.
     steps : tuple of int
         Steps of the chain at which a try is made, on its second half so far.
     ess_min : float
@@ -86,7 +87,7 @@ class ImportanceSettings:
     """
 
     draws: int = 4096
-    max_draws: int = 16384
+    max_draws: int = 65536
     ess_min: float = 1000.0
     quantile_mcse_max: float = 0.2
     steps: tuple = (200, 400, 800, 1600, 3200, 6400, 12800)
@@ -205,7 +206,9 @@ def systematic_resample(weights, rng) -> np.ndarray:
     return np.minimum(np.searchsorted(cumulative, points * cumulative[-1]), n - 1)
 
 
-def importance_sample(log_posterior, points, monitor, rule, settings, rng, step) -> ImportanceRun:
+def importance_sample(
+    log_posterior, points, monitor, rule, settings, rng, step, budget=None
+) -> ImportanceRun:
     """Draws from a t fitted to ``points``, weighted, smoothed and judged.
 
     Parameters
@@ -224,6 +227,9 @@ def importance_sample(log_posterior, points, monitor, rule, settings, rng, step)
     rng : numpy.random.Generator
     step : int
         The chain's step, recorded.
+    budget : int, optional
+        Most draws, if fewer than ``settings.max_draws`` (the chain's evaluations so
+        far); never fewer than one batch.
 
     Returns
     -------
@@ -233,6 +239,7 @@ def importance_sample(log_posterior, points, monitor, rule, settings, rng, step)
     proposal = fit_proposal(points, settings.dof, settings.scale)
     if proposal is None:
         return None
+    limit = max(settings.draws, min(settings.max_draws, budget or settings.max_draws))
     batches, rows, log_q = [], [], []
     while True:  # more draws from the same t while only their number falls short
         batch = np.atleast_2d(proposal.rvs(settings.draws, random_state=rng))
@@ -242,10 +249,10 @@ def importance_sample(log_posterior, points, monitor, rule, settings, rng, step)
         u, evaluated = np.vstack(batches), np.vstack(rows)
         judged = _judge(u, evaluated, np.concatenate(log_q), monitor, rule, settings)
         weights, khat, shortfalls = judged[0], judged[1], judged[-1]
-        if not shortfalls or not khat <= settings.khat_max or len(u) >= settings.max_draws:
+        if not shortfalls or not khat <= settings.khat_max or len(u) >= limit:
             break
-        if _least_ess(judged[3]) * settings.max_draws / len(u) < settings.ess_min:
-            break  # ESS grows in proportion to the draws: even max_draws would fall short
+        if _least_ess(judged[3]) * limit / len(u) < settings.ess_min:
+            break  # ESS grows in proportion to the draws: even the limit would fall short
     keep = systematic_resample(weights, rng)[
         np.sort(rng.choice(len(u), settings.draws, replace=False))
     ]  # as many draws as one batch, whatever the batches made

@@ -71,7 +71,8 @@ def test_quantile_error_of_equal_weights_is_arviz_quantile_mcse():
 
 def test_more_draws_are_made_where_only_their_number_falls_short():
     """256 draws cannot reach ESS 400: batches of 256 more are made from the same t until
-    they do, within ``max_draws``; the result keeps 256 of them, resampled."""
+    they do, within ``max_draws`` and the chain's evaluations so far (``budget``); the
+    result keeps 256 of them, resampled."""
     rng = np.random.default_rng(6)
     points = rng.multivariate_normal(MEAN, COV, size=3000)
     few = ImportanceSettings(draws=256, max_draws=256)
@@ -81,6 +82,10 @@ def test_more_draws_are_made_where_only_their_number_falls_short():
     run = importance_sample(gaussian_posterior, points, MONITOR, StopRule(), more, rng, 200)
     assert run.passed and run.ess >= StopRule().ess_min and len(run.u) == 256
     assert 256 < run.made < 4096 and run.made % 256 == 0  # it stopped once the ESS sufficed
+    budgeted = importance_sample(
+        gaussian_posterior, points, MONITOR, StopRule(), more, rng, 8, budget=1000
+    )  # a chain of 8 steps of 125 walkers: ~1000 draws would not reach the ESS either
+    assert budgeted.made == 256 and not budgeted.passed
 
 
 def test_a_proposal_too_narrow_for_heavy_tails_fails_on_khat():
