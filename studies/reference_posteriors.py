@@ -46,6 +46,7 @@ from speed_real_shots import (  # noqa: E402
 
 from forward.expected import NUMERICS_REVISION  # noqa: E402
 from lidarinv.inference import InversionSettings, prepare_problem, sample_prepared  # noqa: E402
+from lidarinv.inference.sampling import ImportanceSettings  # noqa: E402
 
 #: Default store of the references: test data.
 STORE = Path(__file__).resolve().parent.parent / "tests" / "data" / "reference_posteriors.json"
@@ -104,13 +105,19 @@ def finish(record: dict) -> dict:
     return record
 
 
+def long_run_settings(sampler, steps: int):
+    """``sampler`` (SamplerSettings) run for ``steps`` steps whatever the chain shows: the
+    rule asks for a chain longer than any, and no importance draws are tried."""
+    return replace(sampler, max_steps=steps, min_taus=1e9, importance=ImportanceSettings(draws=0))
+
+
 def reference(observation, seed: int, restarts: int, steps: int, earlier=None) -> dict:
     """One shot's reference: ``restarts`` runs of ``steps`` steps of the posterior that
     ``seed`` prepares, joined to the ``earlier`` record's restarts where given."""
     clock, cpu = time.perf_counter(), time.process_time()
     prepared = prepare_problem(observation, InversionSettings(), np.random.default_rng(seed))
     settings = prepared.problem.settings.sampler
-    long_run = replace(settings, max_steps=steps, min_taus=1e9)  # never stops on the rule
+    long_run = long_run_settings(settings, steps)
     first = 0 if earlier is None else earlier["restarts"]
     seeds = np.random.SeedSequence(seed).spawn(first + restarts)[first:]
     results = []

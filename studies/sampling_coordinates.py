@@ -407,7 +407,8 @@ def main():
     rng = np.random.default_rng(args.seed)
     base = replace(InversionSettings(discrepancy_model=args.discrepancy_model), **TEN_FREE)
     # a fixed length: τ is compared at equal cost, not at convergence
-    sampler = replace(base.sampler, max_steps=args.steps, tau_multiple=1e9, **sampler_changes(args))
+    sampler = replace(base.sampler, max_steps=args.steps, stop_rule="tau", tau_multiple=1e9,
+                      **sampler_changes(args))  # fmt: skip
     base = replace(base, sampler=sampler)
     shots, skipped, i = [], [], 0
     while len(shots) < args.n:
