@@ -70,7 +70,7 @@ def test_quantile_error_of_equal_weights_is_arviz_quantile_mcse():
 
 
 def test_more_draws_are_made_where_only_their_number_falls_short():
-    """256 draws cannot reach ESS 400: batches of 256 more are made from the same t until
+    """256 draws cannot reach ESS 1000: batches of 256 more are made from the same t until
     they do, within ``max_draws`` and the chain's evaluations so far (``budget``); the
     result keeps 256 of them, resampled."""
     rng = np.random.default_rng(6)
