@@ -55,9 +55,10 @@ class ImportanceSettings:
     max_draws : int
         Where k̂ passes but a quantity's ESS falls short, batches of ``draws`` more are
         made from the same t, up to this many in all and no more than the chain's own
-        evaluations so far (walkers × steps: a try that fails at most doubles what the
-        run has cost), unless the ESS so far, grown in proportion, would fall short even
-        then. An ESS grows with the draws, and a draw costs what a walker's step does.
+        evaluations so far rounded up to whole batches (walkers × steps: a try that fails
+        about doubles what the run has cost, at most), unless the ESS so far, grown in
+        proportion, would fall short even then. An ESS grows with the draws, and a draw
+        costs what a walker's step does.
     steps : tuple of int
         Steps of the chain at which a try is made, on its second half so far.
     ess_min : float
@@ -229,7 +230,7 @@ def importance_sample(
         The chain's step, recorded.
     budget : int, optional
         Most draws, if fewer than ``settings.max_draws`` (the chain's evaluations so
-        far); never fewer than one batch.
+        far), rounded up to whole batches of ``settings.draws``.
 
     Returns
     -------
