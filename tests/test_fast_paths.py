@@ -1,7 +1,7 @@
 """Every compiled kernel against its numpy twin, through the one ``backend=`` switch and
 the one check of lidarinv.testing: the expected model's processes (depth, point stems,
-grid assembly, the grid path in one call, ground), the stand mapping's identities and the
-ridge maps. The likelihood and the RH kernels are checked against their references in
+grid assembly, the grid path in one call, ground), the stand mapping's identities, the
+two-storey mixture's cuts and the ridge maps. The likelihood and the RH kernels are checked against their references in
 tests/lidarinv/inference/likelihood/test_gaussian.py, the stand mapping as a whole in
 tests/lidarinv/inference/model/test_stand.py."""
 
@@ -21,9 +21,11 @@ from forward.expected import (
 from forward.expected.settings import GRID_UNDERSHOOT
 from forward.height_families import HEIGHT_DISTRIBUTIONS
 from lidarinv.inference.model import coordinates
+from lidarinv.inference.model.mixture_cut import mixture_cut
 from lidarinv.inference.model.parameters import DEFAULT_STRUCTURE_PRIORS, default_space
 from lidarinv.inference.model.stand import TOP_SDS, StandMapping, default_template
 from lidarinv.inference.model.stand_columns import DOMINANT_PER_HA, stand_columns
+from lidarinv.inference.model.two_cohort import TwoCohortMapping
 from lidarinv.testing import assert_backends_agree, assert_fast_path
 
 pytest.importorskip("numba")
@@ -176,6 +178,25 @@ def test_stand_identities_compiled_equal_numpy(shapes):
     v = {name: values[mapping.valid({**v, "rho_ratio": v["cover"]})] for name, values in v.items()}
     args = (v, 0.0, TOP_SDS, mapping.family, mapping.truncation, mapping._volume, mapping._leaf)
     assert_backends_agree(stand_columns, *args, DOMINANT_PER_HA, rtol=1e-10)
+
+
+def test_two_storey_cuts_compiled_equal_numpy():
+    """Cuts of two-storey mixtures, closed-form and bisected, with the edge cases of the
+    tails (none, every stem, beyond every stem, NaN)."""
+    mapping = TwoCohortMapping(default_template())
+    rng = np.random.default_rng(8)
+    n = 400
+    v = {
+        "top_height": rng.uniform(5.0, 60.0, n),
+        "height_sd": rng.uniform(0.3, 8.0, n),
+        "cohort2_fraction": rng.uniform(0.0, 1.0, n),
+        "cohort2_top_ratio": rng.uniform(0.1, 0.9, n),
+        "cohort2_sd_ratio": rng.uniform(0.02, 0.45, n),
+    }
+    laws = mapping._stacked_laws(mapping.cohort_heights(v))
+    tail = 10.0 ** rng.uniform(-9.0, 0.0, n)
+    tail[:5] = [0.0, 1.0, 2.0, np.inf, np.nan]
+    assert_backends_agree(mixture_cut, mapping.family, laws, tail, rtol=1e-12, atol=1e-9)
 
 
 def test_ridge_maps_compiled_equal_numpy(nuisance_priors):

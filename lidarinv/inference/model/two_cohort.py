@@ -25,10 +25,12 @@ and the same for E[π R² ℓ h] with each cohort's shape mix in the FAVD and cr
 import numpy as np
 
 from forward import poisson_stand
+from forward.backends import resolve
 from forward.crowns import CROWN_SHAPES
 from forward.expected import vectors_by_name
 
 from . import tallest_stem
+from .mixture_cut import cohort_row, mixture_cut, mixture_sum
 from .priors import Uniform
 from .stand import DOMINANT_PER_HA, TOP_SDS, StandMapping
 from .tallest_stem import TALLEST_STEM, TALLEST_STEM_POSITION
@@ -53,9 +55,6 @@ COHORT2_PRIORS = {
 #: lies in this one (its optimum a start for this model's search).
 EMPTY_LOWER_STOREY = {"cohort2_fraction": 1e-3, "cohort2_top_ratio": 0.5, "cohort2_sd_ratio": 0.1}
 
-#: Bisection steps of the mixture's cuts: a 60 m span to 4 µm.
-_BISECTION_STEPS = 24
-
 
 class TwoCohortMapping(StandMapping):
     """The stand mapping of a two-storey stand (see the module).
@@ -71,7 +70,9 @@ class TwoCohortMapping(StandMapping):
         :class:`.stand.StandMapping` does; the stem's law is that of the tallest of a
         Poisson draw from the mixture of the two storeys, and it stops both.
     backend : str
-        The stand columns are computed with numpy (the mixture has no compiled kernel).
+        ``"auto"``, ``"numba"`` or ``"numpy"`` for the mixture's cuts (the dominant
+        height, the tallest stem: :func:`.mixture_cut.mixture_cut`, compiled for
+        truncated-normal heights); the stand columns are computed with numpy.
     """
 
     def __init__(
@@ -84,6 +85,7 @@ class TwoCohortMapping(StandMapping):
     ):
         super().__init__(template, shape_pair, profile_nodes, footprint_sigma_m, backend)
         self.backend = "numpy"
+        self.cut_backend = resolve(backend)
         self.model_free += ("cohort2_fraction", "cohort2_height_mean", "cohort2_height_sd")
         ratio = dict(zip(CROWN_SHAPES, template.favd_ratio))
         mix2 = dict(zip(CROWN_SHAPES, template.cohort2_shape_mix))
@@ -143,34 +145,14 @@ class TwoCohortMapping(StandMapping):
 
     def _mixture_isf(self, laws, tail):
         """The height h where the mixture's survival Σ f_k S_k(h) equals ``tail``; 0
-        where ``tail`` ≥ 1.
-
-        ``laws`` are the cohorts' shares and stacked arguments, upper storey first
-        (:meth:`_stacked_laws`). The upper storey's own cut, S₁(h₀) = tail/f₁ in closed
-        form, is the answer wherever the lower storey has no trees above it (the usual case
-        for the tallest stems); the other rows are bisected on [h₀, the tallest cohort's
-        top].
-        """
-        fast = self.family.fast
-        shares, args = laws
-        f1 = shares[0]
-        cut = fast("isf", np.clip(tail / np.maximum(f1, 1e-300), 0.0, 1.0), *_cohort_row(args, 0))
-        rows = np.flatnonzero(np.abs(mixture_sum(fast, "sf", cut, *laws) - tail) > 1e-9 * tail)
-        if rows.size:
-            part = tuple(f[rows] for f in shares), _cohort_row(args, (slice(None), rows))
-            low = np.where(tail[rows] < f1[rows], cut[rows], 0.0)
-            high = np.max(fast("isf", 1e-12, *part[1]), axis=0)
-            for _ in range(_BISECTION_STEPS):
-                mid = 0.5 * (low + high)
-                above = mixture_sum(fast, "sf", mid, *part) > tail[rows]
-                low, high = np.where(above, mid, low), np.where(above, high, mid)
-            cut[rows] = 0.5 * (low + high)
-        return np.where(tail < 1.0, cut, 0.0)
+        where ``tail`` ≥ 1 (:func:`.mixture_cut.mixture_cut`, ``laws`` as
+        :meth:`_stacked_laws` gives them)."""
+        return mixture_cut(self.family, laws, tail, backend=self.cut_backend)
 
     def _dominant_height(self, laws, lam):
         """Mean height of the :data:`DOMINANT_PER_HA` tallest stems per hectare of the
         mixture (``laws``: :meth:`_stacked_laws`): its cut h* solves λ·Σ f_k S_k(h*) = the
-        dominant density (bisection), then Σ f_k ∫_{h*} h f_k(h) dh over the share above
+        dominant density (:meth:`_mixture_isf`), then Σ f_k ∫_{h*} h f_k(h) dh over the share above
         the cut."""
         per_m2 = DOMINANT_PER_HA * 1e-4
         tail = np.clip(per_m2 / lam, 1e-9, 1.0)
@@ -227,7 +209,7 @@ class TwoCohortMapping(StandMapping):
         """:func:`.tallest_stem.condition` on the mixture of the two storeys (``laws``:
         :meth:`_stacked_laws`)."""
         shares, args = laws
-        per_cohort = [(f, _cohort_row(args, k)) for k, f in enumerate(shares)]
+        per_cohort = [(f, cohort_row(args, k)) for k, f in enumerate(shares)]
         return tallest_stem.condition(
             self.family, per_cohort, self.lowest_height(v), lam * self.tallest_stem_area,
             v[TALLEST_STEM], v[TALLEST_STEM_POSITION], self.footprint_sigma_m,
@@ -273,18 +255,3 @@ class TwoCohortMapping(StandMapping):
         for (share, mean, sd), mix in zip(self.cohort_heights(v), mixes):
             out += share[:, None] * self.shape_profile(mean, sd, mix, v, z)
         return lam[:, None] * out
-
-
-def _cohort_row(args, index):
-    """The family's arguments ``args`` (nested tuples of arrays and scalars) at ``index``
-    of their arrays' leading axis: a cohort of stacked arguments, or some rows."""
-    if isinstance(args, tuple):
-        return tuple(_cohort_row(a, index) for a in args)
-    return args[index] if np.ndim(args) else args
-
-
-def mixture_sum(fast, which, h, shares, args):
-    """Σ_k f_k·F_k(h) of the family's function ``which`` (``fast``), every cohort in one
-    call: ``args`` stacked on a leading cohort axis, ``shares`` one array per cohort."""
-    values = fast(which, h, *args)
-    return sum(f * values[k] for k, f in enumerate(shares))

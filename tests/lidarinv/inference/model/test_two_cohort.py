@@ -9,11 +9,12 @@ import pytest
 from forward import poisson_stand
 from lidarinv.examples import SYNTHETIC_SHOTS, ShotRecipe, synthetic_shot
 from lidarinv.inference import InversionSettings, SamplerSettings
+from lidarinv.inference.model.mixture_cut import mixture_cut, mixture_sum
 from lidarinv.inference.model.parameters import default_space
 from lidarinv.inference.model.priors import Uniform
 from lidarinv.inference.model.stand import StandMapping, default_template
 from lidarinv.inference.model.tallest_stem import TALLEST_STEM, disc_area
-from lidarinv.inference.model.two_cohort import COHORT2, TwoCohortMapping, mixture_sum
+from lidarinv.inference.model.two_cohort import COHORT2, TwoCohortMapping
 from lidarinv.inference.passes.cohorts import (
     STOREYS_RESOLVED_PULSE_WIDTHS,
     choose_cohorts,
@@ -114,6 +115,28 @@ def test_both_storeys_moments_in_one_pass_equal_each_storeys_own(rng):
         dominant_cut = dominant_cut + share * family.mean_above(cut, mean, sd, t)
     assert np.array_equal(mixture_sum(family.fast, "sf", cut, shares, args), survival)
     assert np.array_equal(mixture_sum(family.fast, "mean_above", cut, shares, args), dominant_cut)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_the_mixture_cut_leaves_the_asked_share_of_stems_above(rng, backend):
+    """Σ f_k S_k(cut) = tail with scipy's truncated normals as the slow reference: where
+    the upper storey alone holds the tallest stems (closed form), and where the lower
+    storey reaches above that (bisected)."""
+    if backend == "numba":
+        pytest.importorskip("numba")
+    mapping = TwoCohortMapping(default_template())
+    v = _rows(rng)
+    v["cohort2_top_ratio"] = np.array([0.3, 0.3, 0.95, 0.95, 0.8, 0.6]) * 0.94
+    v["cohort2_fraction"] = np.array([0.5, 0.5, 0.9, 0.9, 0.7, 0.99])
+    heights = mapping.cohort_heights(v)
+    tail = np.array([1e-3, 0.3, 1e-3, 0.3, 0.05, 0.5])
+    cut = mixture_cut(mapping.family, mapping._stacked_laws(heights), tail, backend=backend)
+    family, t = mapping.family, mapping.truncation
+    above = sum(share * family.sf(cut, mean, sd, t) for share, mean, sd in heights)
+    np.testing.assert_allclose(above, tail, rtol=1e-5)
+    share, mean, sd = heights[1]
+    lower = share * family.sf(cut, mean, sd, t)  # the lower storey's stems above the cut
+    assert np.any(lower == 0) and np.any(lower > 0.1 * tail)  # closed form, and bisected
 
 
 def test_the_tallest_stem_of_a_two_storey_stand_follows_the_poisson_law(rng):
