@@ -14,10 +14,10 @@ at a fraction of the steps the chain needs to pass the ``"ess-rhat"`` rule
   ``ess_min`` (1000, more than the chain's rule asks: see :class:`ImportanceSettings`),
   and its quantiles' Monte Carlo error at most ``quantile_mcse_max`` (0.2 sd).
 
-Where the first batch of draws falls short, the t is fitted again to its weighted draws
-(adaptive importance sampling: Cappé et al. 2004) and the try goes on from the new t
-alone; where, from then on, only the ESS or the quantiles' error fall short, more draws
-are made from the same t, within a bound on the draws of the whole try.
+Where only the ESS or the quantiles' error fall short, more draws are made from the same
+t, within a bound on the draws. Where the draws fail even so, the t is fitted again to
+their weighted draws (adaptive importance sampling: Cappé et al. 2004) and the try begins
+again from the new t alone.
 
 Where they pass, the weighted draws are resampled (systematic resampling) into draws of
 equal weight, which the result then uses as it would the chain's; where they fail the
@@ -82,12 +82,13 @@ class ImportanceSettings:
         GEDI shot whose PAI has a median of 0.12 and a 95 % quantile near 3.3, passing draws
         at an error of 0.34 sd put it at 5.2, where four chains lay within 3.4–3.9.
     refits : int
-        Where the first batch falls short (k̂ or an ESS), the t is fitted again to that
-        batch's weighted draws (their weighted mean, and their weighted covariance times
-        ``scale``²: :func:`weighted_proposal`), this many times at most, and the try goes
-        on from the new t alone, within the same bound on the draws. The chain's early
-        steps give a t of about the right size, but off-centre or too narrow where the
-        walkers are still spreading; the weights say where the posterior lies.
+        Where the draws from the t fall short (k̂, an ESS or a quantile's error), the t is
+        fitted again to their weighted draws (their weighted mean, and their weighted
+        covariance times ``scale``²: :func:`weighted_proposal`) and the try begins again
+        from the new t alone, with the same bound on its draws; this many times at most,
+        so that a try that fails makes up to 1 + ``refits`` times that bound. The chain's
+        early steps give a t of about the right size, but off-centre or too narrow where
+        the walkers are still spreading; the weights say where the posterior lies.
     khat_max : float
         Largest Pareto k̂ of the weights (Vehtari et al. 2024, §3: the estimate is
         reliable below min(1 − 1/log₁₀ S, 0.7), 0.7 for 4096 draws; the stricter 0.5
@@ -245,8 +246,8 @@ def systematic_resample(weights, rng) -> np.ndarray:
 def importance_sample(
     log_posterior, points, monitor, rule, settings, rng, step, budget=None
 ) -> ImportanceRun:
-    """Draws from a t fitted to ``points`` (fitted again, ``settings.refits`` times, to
-    its first batch's weighted draws where they fall short), weighted, smoothed and judged.
+    """Draws from a t fitted to ``points`` (fitted again to its weighted draws where they
+    fall short, ``settings.refits`` times at most), weighted, smoothed and judged.
 
     Parameters
     ----------
@@ -265,9 +266,8 @@ def importance_sample(
     step : int
         The chain's step, recorded.
     budget : int, optional
-        Most draws of the whole try, refits included, if fewer than
-        ``settings.max_draws`` (the chain's evaluations so far), rounded up to whole
-        batches of ``settings.draws``.
+        Most draws from each t, if fewer than ``settings.max_draws`` (the chain's
+        evaluations so far), rounded up to whole batches of ``settings.draws``.
 
     Returns
     -------
@@ -278,29 +278,17 @@ def importance_sample(
     if proposal is None:
         return None
     limit = max(settings.draws, min(settings.max_draws, budget or settings.max_draws))
-    refits, earlier = settings.refits, 0  # draws of proposals given up
-    batches, rows, log_q = [], [], []
-    while True:  # more draws from the same t while only their number falls short
-        batch = np.atleast_2d(proposal.rvs(settings.draws, random_state=rng))
-        batches.append(batch)
-        rows += [log_posterior(batch[i : i + CHUNK_ROWS]) for i in range(0, len(batch), CHUNK_ROWS)]
-        log_q.append(proposal.logpdf(batch))
-        u, evaluated = np.vstack(batches), np.vstack(rows)
-        judged = _judge(u, evaluated, np.concatenate(log_q), monitor, rule, settings)
+    made = 0
+    for refit in range(settings.refits + 1):
+        u, evaluated, judged = _draws_from(proposal, log_posterior, monitor, rule, settings, rng,
+                                           limit)  # fmt: skip
+        made += len(u)
         weights, khat, shortfalls = judged[0], judged[1], judged[-1]
-        made = earlier + len(u)
-        if not shortfalls or made >= limit:
+        if not shortfalls or refit == settings.refits:
             break
-        if refits and len(batches) == 1:  # the t again, from these draws' weights
-            refitted = weighted_proposal(u, weights, settings.dof, settings.scale)
-            if refitted is not None:
-                proposal, refits, earlier = refitted, refits - 1, made
-                batches, rows, log_q = [], [], []
-                continue
-        if not khat <= settings.khat_max:
+        proposal = weighted_proposal(u, weights, settings.dof, settings.scale)
+        if proposal is None:
             break
-        if _least_ess(judged[3]) * (limit - earlier) / len(u) < settings.ess_min:
-            break  # ESS grows in proportion to the draws: even the limit would fall short
     keep = systematic_resample(weights, rng)[
         np.sort(rng.choice(len(u), settings.draws, replace=False))
     ]  # as many draws as one batch, whatever the batches made
@@ -309,6 +297,25 @@ def importance_sample(
         float(1.0 / np.sum(weights**2)) if weights.any() else 0.0, *judged[2:4], step,
         not shortfalls, shortfalls, made,
     )  # fmt: skip
+
+
+def _draws_from(proposal, log_posterior, monitor, rule, settings, rng, limit):
+    """Batches of draws from one t, judged, until they pass, k̂ fails, ``limit`` draws are
+    made, or the ESS so far, grown in proportion, could not reach the asked one within
+    ``limit``: the draws, their log-posterior and blobs, and :func:`_judge`'s verdict."""
+    batches, rows, log_q = [], [], []
+    while True:  # more draws from the same t while only their number falls short
+        batch = np.atleast_2d(proposal.rvs(settings.draws, random_state=rng))
+        batches.append(batch)
+        rows += [log_posterior(batch[i : i + CHUNK_ROWS]) for i in range(0, len(batch), CHUNK_ROWS)]
+        log_q.append(proposal.logpdf(batch))
+        u, evaluated = np.vstack(batches), np.vstack(rows)
+        judged = _judge(u, evaluated, np.concatenate(log_q), monitor, rule, settings)
+        khat, shortfalls = judged[1], judged[-1]
+        if not shortfalls or not khat <= settings.khat_max or len(u) >= limit:
+            return u, evaluated, judged
+        if _least_ess(judged[3]) * limit / len(u) < settings.ess_min:
+            return u, evaluated, judged  # even the limit would fall short
 
 
 def _least_ess(quantities) -> float:
