@@ -61,10 +61,10 @@ class ImportanceSettings:
     max_draws : int
         Where k̂ passes but a quantity's ESS falls short, batches of ``draws`` more are
         made from the same t, up to this many in all and no more than the chain's own
-        evaluations so far rounded up to whole batches (walkers × steps: a try that fails
-        about doubles what the run has cost, at most), unless the ESS so far, grown in
-        proportion, would fall short even then. An ESS grows with the draws, and a draw
-        costs what a walker's step does.
+        evaluations so far rounded up to whole batches (walkers × steps: each t of a try
+        that fails costs about what the run has cost so far, at most), unless the ESS so
+        far, grown in proportion, would fall short even then. An ESS grows with the
+        draws, and a draw costs what a walker's step does.
     steps : tuple of int
         Steps of the chain at which a try is made, on its second half so far.
     ess_min : float

@@ -471,8 +471,8 @@ def _importance_steps(iteration, s: SamplerSettings) -> list:
 
 def _try_importance(sampler, log_posterior, monitor, s: SamplerSettings, rng) -> ImportanceRun:
     """:func:`.importance.importance_sample` with a t fitted to the chain's second half,
-    making about as many draws as the chain has made evaluations, at most (rounded up to
-    whole batches)."""
+    making about as many draws from each t as the chain has made evaluations, at most
+    (rounded up to whole batches)."""
     half = sampler.get_chain(discard=sampler.iteration // 2)
     return importance_sample(
         log_posterior, half.reshape(-1, half.shape[-1]), monitor, _rule(s), s.importance, rng,
