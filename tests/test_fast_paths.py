@@ -1,9 +1,9 @@
 """Every compiled kernel against its numpy twin, through the one ``backend=`` switch and
 the one check of lidarinv.testing: the expected model's processes (depth, point stems,
 grid assembly, the grid path in one call, ground), the stand mapping's identities, the
-two-storey mixture's cuts and the ridge maps. The likelihood and the RH kernels are checked against their references in
-tests/lidarinv/inference/likelihood/test_gaussian.py, the stand mapping as a whole in
-tests/lidarinv/inference/model/test_stand.py."""
+two-storey mixture's cuts and the ridge maps. The likelihood and the RH kernels are
+checked against their references in tests/lidarinv/inference/likelihood/test_gaussian.py,
+the stand mapping as a whole in tests/lidarinv/inference/model/test_stand.py."""
 
 import numpy as np
 import pytest
