@@ -78,8 +78,7 @@ def mixture_cut(family, laws, tail, *, backend="auto"):
 
 
 def _bisected_cut(fast, shares, args, tail, cut):
-    """The reference: the closed-form ``cut`` where it holds, else bisected."""
-    cut = cut.copy()
+    """The reference: the closed-form ``cut`` where it holds, else bisected (in place)."""
     rows = np.flatnonzero(
         np.abs(mixture_sum(fast, "sf", cut, shares, args) - tail) > CUT_TOLERANCE * tail
     )

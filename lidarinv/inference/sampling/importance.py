@@ -147,10 +147,7 @@ def fit_proposal(points, dof, scale):
     if points.shape[0] <= points.shape[1] or not np.all(np.isfinite(points)):
         return None
     shape = np.atleast_2d(np.cov(points, rowvar=False)) * scale**2
-    try:
-        return stats.multivariate_t(points.mean(axis=0), shape, df=dof)
-    except (np.linalg.LinAlgError, ValueError):
-        return None
+    return _student_t(points.mean(axis=0), shape, dof)
 
 
 def weighted_proposal(draws, weights, dof, scale):
@@ -166,6 +163,12 @@ def weighted_proposal(draws, weights, dof, scale):
     mean = weights[held] @ draws[held]
     centred = draws[held] - mean
     shape = (weights[held, None] * centred).T @ centred * scale**2
+    return _student_t(mean, shape, dof)
+
+
+def _student_t(mean, shape, dof):
+    """scipy's multivariate t of ``mean`` and scale matrix ``shape``; None where ``shape``
+    is singular."""
     try:
         return stats.multivariate_t(mean, shape, df=dof)
     except (np.linalg.LinAlgError, ValueError):
